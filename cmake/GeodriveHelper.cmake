@@ -1,0 +1,50 @@
+# geodrive_add_library(NAME <target> [SRCS ...] [PUBLIC_LINK_LIBS ...] [PRIVATE_LINK_LIBS ...])
+#
+# Declares one static library per module folder. Sources default to every *.cc in the folder;
+# headers (*.h, excluding internal/) are installed under include/geodrive/<folder>/. The target is
+# exported as geodrive::<folder> (e.g. geodrive::geometry).
+function(geodrive_add_library)
+  cmake_parse_arguments(ARG "" "NAME" "SRCS;PUBLIC_LINK_LIBS;PRIVATE_LINK_LIBS" ${ARGN})
+  get_filename_component(folder ${CMAKE_CURRENT_SOURCE_DIR} NAME)
+  if(NOT ARG_SRCS)
+    file(GLOB ARG_SRCS CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
+  endif()
+  file(GLOB headers CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.h)
+  add_library(${ARG_NAME} STATIC ${ARG_SRCS})
+  add_library(geodrive::${folder} ALIAS ${ARG_NAME})
+  set_target_properties(${ARG_NAME} PROPERTIES EXPORT_NAME ${folder})
+  target_include_directories(${ARG_NAME} PUBLIC
+    $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}>
+    $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/generated>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/geodrive>)
+  target_compile_options(${ARG_NAME} PRIVATE ${GEODRIVE_WARNINGS})
+  target_link_libraries(${ARG_NAME} PUBLIC ${ARG_PUBLIC_LINK_LIBS} PRIVATE ${ARG_PRIVATE_LINK_LIBS})
+  install(TARGETS ${ARG_NAME} EXPORT geodriveTargets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/geodrive/${folder})
+endfunction()
+
+# geodrive_add_test(MODULE <module> [SRCS ...] LINK_LIBS ...)
+#
+# One GoogleTest executable per module (tests/<module>/*_test.cc by default), linked to the shared
+# seeded test main; each TEST becomes a CTest test named <module>/<Suite>.<Name>, labelled <module>.
+function(geodrive_add_test)
+  cmake_parse_arguments(ARG "" "MODULE" "SRCS;LINK_LIBS" ${ARGN})
+  if(NOT ARG_SRCS)
+    file(GLOB ARG_SRCS CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
+  endif()
+  if(NOT ARG_SRCS)
+    message(STATUS "geodrive: no tests yet for module ${ARG_MODULE}")
+    return()
+  endif()
+  set(target geodrive_${ARG_MODULE}_tests)
+  add_executable(${target} ${ARG_SRCS})
+  target_compile_options(${target} PRIVATE ${GEODRIVE_WARNINGS})
+  target_link_libraries(${target} PRIVATE geodrive_test_main ${ARG_LINK_LIBS})
+  gtest_discover_tests(${target}
+    TEST_PREFIX "${ARG_MODULE}/"
+    PROPERTIES LABELS ${ARG_MODULE}
+    DISCOVERY_MODE PRE_TEST
+    DISCOVERY_TIMEOUT 60)
+endfunction()

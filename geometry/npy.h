@@ -1,0 +1,100 @@
+#pragma once
+// NumPy .npy reading and writing (format versions 1.0, 2.0, 3.0).
+//
+// Supported dtypes: <f4 <f8 |u1 |b1 <i4 <i8 <u2 (and their big-endian '>' forms on read).
+// Arrays are returned in native (little-endian) byte order and C (row-major) order: Fortran-order
+// and big-endian files are converted on read. Every failure throws InputError naming the file.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace geodrive {
+
+enum class NpyDtype { kFloat32, kFloat64, kUint8, kBool, kInt32, kInt64, kUint16 };
+
+// Size in bytes of one element.
+size_t NpyDtypeSize(NpyDtype dtype);
+// numpy descr string in little-endian form: "<f4", "|u1", ...
+std::string NpyDtypeDescr(NpyDtype dtype);
+
+// What the header of a .npy file says (as stored: byte order and memory order of the file).
+struct NpyHeader {
+  int major_version = 1;
+  int minor_version = 0;
+  NpyDtype dtype = NpyDtype::kFloat32;
+  bool big_endian = false;
+  bool fortran_order = false;
+  std::vector<int64_t> shape;
+  size_t data_offset = 0;  // bytes from the start of the file to the data
+
+  int64_t NumElements() const;
+};
+
+// An array in native byte order and C order.
+struct NpyArray {
+  NpyDtype dtype = NpyDtype::kFloat32;
+  std::vector<int64_t> shape;
+  std::vector<uint8_t> bytes;  // NumElements() * NpyDtypeSize(dtype) bytes
+
+  int64_t NumElements() const;
+  // Typed view; throws InputError if T does not match dtype (bool reads as uint8_t).
+  template <typename T>
+  const T* Data() const;
+  template <typename T>
+  T* MutableData();
+
+  // Helpers to build arrays for writing.
+  static NpyArray Float32(const std::vector<int64_t>& shape, const float* data);
+  static NpyArray Float64(const std::vector<int64_t>& shape, const double* data);
+  static NpyArray Uint8(const std::vector<int64_t>& shape, const uint8_t* data);
+  static NpyArray Zeros(NpyDtype dtype, const std::vector<int64_t>& shape);
+};
+
+// Limits that protect against absurd headers (a shape that would need terabytes).
+struct NpyReadOptions {
+  // Maximum number of bytes of array data accepted (default 8 GiB).
+  uint64_t max_bytes = 8ull << 30;
+};
+
+// Reads only the header (cheap; used by `geodrive info`).
+NpyHeader ReadNpyHeader(const std::string& path);
+// Reads the whole array.
+NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options = {});
+// Reads a float array of any supported numeric dtype converted to float32 (bool/uint8/... too).
+NpyArray ReadNpyAsFloat32(const std::string& path, const NpyReadOptions& options = {});
+
+struct NpyWriteOptions {
+  int major_version = 1;       // 1, 2 or 3 (3 only changes the header encoding to utf-8)
+  bool fortran_order = false;  // write column-major data
+  bool big_endian = false;     // write big-endian data (descr '>f4' ...)
+};
+// Writes `array` to `path` atomically (temporary file + rename). Throws InputError on failure.
+void WriteNpy(const std::string& path, const NpyArray& array, const NpyWriteOptions& options = {});
+
+// ---- Implementation ----
+template <typename T>
+struct NpyTypeOf;
+template <> struct NpyTypeOf<float> { static constexpr NpyDtype value = NpyDtype::kFloat32; };
+template <> struct NpyTypeOf<double> { static constexpr NpyDtype value = NpyDtype::kFloat64; };
+template <> struct NpyTypeOf<uint8_t> { static constexpr NpyDtype value = NpyDtype::kUint8; };
+template <> struct NpyTypeOf<int32_t> { static constexpr NpyDtype value = NpyDtype::kInt32; };
+template <> struct NpyTypeOf<int64_t> { static constexpr NpyDtype value = NpyDtype::kInt64; };
+template <> struct NpyTypeOf<uint16_t> { static constexpr NpyDtype value = NpyDtype::kUint16; };
+
+void NpyThrowDtypeMismatch(NpyDtype have, NpyDtype want);
+
+template <typename T>
+const T* NpyArray::Data() const {
+  constexpr NpyDtype want = NpyTypeOf<T>::value;
+  if (!(dtype == want || (want == NpyDtype::kUint8 && dtype == NpyDtype::kBool))) {
+    NpyThrowDtypeMismatch(dtype, want);
+  }
+  return reinterpret_cast<const T*>(bytes.data());
+}
+template <typename T>
+T* NpyArray::MutableData() {
+  return const_cast<T*>(static_cast<const NpyArray*>(this)->Data<T>());
+}
+
+}  // namespace geodrive

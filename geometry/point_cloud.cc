@@ -1,0 +1,79 @@
+#include "geometry/point_cloud.h"
+
+#include "geometry/status.h"
+
+namespace geodrive {
+
+void PointCloud::Reserve(size_t n) { positions.reserve(n); }
+
+void PointCloud::Check(const std::string& what) const {
+  const size_t n = positions.size();
+  auto check = [&](size_t m, const char* name) {
+    GEODRIVE_CHECK_INPUT(m == 0 || m == n, what, ": attribute '", name, "' has ", m,
+                         " entries for ", n, " points");
+  };
+  check(colors.size(), "colors");
+  check(confidence.size(), "confidence");
+  check(instance_ids.size(), "instance_ids");
+  check(intensity.size(), "intensity");
+  check(ring.size(), "ring");
+  for (size_t i = 0; i < n; ++i) {
+    GEODRIVE_CHECK_INPUT(positions[i].allFinite(), what, ": point ", i, " is not finite");
+  }
+}
+
+Eigen::AlignedBox3f PointCloud::Bounds() const {
+  Eigen::AlignedBox3f box;
+  for (const auto& p : positions) {
+    if (p.allFinite()) box.extend(p);
+  }
+  return box;
+}
+
+namespace {
+template <typename T>
+void AppendAttr(std::vector<T>& a, const std::vector<T>& b, size_t na, size_t nb) {
+  if (nb == 0) return;             // nothing appended: keep a as is
+  if (na == 0) {                   // a was empty: take b's attribute
+    a = b;
+    return;
+  }
+  if (!a.empty() && !b.empty()) {  // both have it
+    a.insert(a.end(), b.begin(), b.end());
+  } else {
+    a.clear();                     // only one has it: drop
+  }
+}
+template <typename T>
+void SelectAttr(const std::vector<T>& in, const std::vector<size_t>& idx, std::vector<T>& out) {
+  if (in.empty()) return;
+  out.reserve(idx.size());
+  for (size_t i : idx) out.push_back(in[i]);
+}
+}  // namespace
+
+void PointCloud::Append(const PointCloud& other) {
+  const size_t na = size(), nb = other.size();
+  AppendAttr(colors, other.colors, na, nb);
+  AppendAttr(confidence, other.confidence, na, nb);
+  AppendAttr(instance_ids, other.instance_ids, na, nb);
+  AppendAttr(intensity, other.intensity, na, nb);
+  AppendAttr(ring, other.ring, na, nb);
+  positions.insert(positions.end(), other.positions.begin(), other.positions.end());
+}
+
+PointCloud PointCloud::Select(const std::vector<size_t>& indices) const {
+  PointCloud out;
+  for (size_t i : indices) {
+    GEODRIVE_CHECK_INPUT(i < size(), "PointCloud::Select: index ", i, " out of range ", size());
+  }
+  SelectAttr(positions, indices, out.positions);
+  SelectAttr(colors, indices, out.colors);
+  SelectAttr(confidence, indices, out.confidence);
+  SelectAttr(instance_ids, indices, out.instance_ids);
+  SelectAttr(intensity, indices, out.intensity);
+  SelectAttr(ring, indices, out.ring);
+  return out;
+}
+
+}  // namespace geodrive

@@ -1,0 +1,45 @@
+#pragma once
+// A plain point cloud: positions plus optional parallel attributes. No algorithms live here
+// (they are free functions elsewhere); conversion to PCL happens in geometry/internal only.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace geodrive {
+
+using Color3u8 = Eigen::Matrix<uint8_t, 3, 1>;  // RGB, 0..255
+
+struct PointCloud {
+  // Point positions; the frame is the caller's (name the variable: points_in_world, ...).
+  std::vector<Eigen::Vector3f> positions;
+  // Optional attributes: empty, or exactly one entry per point.
+  std::vector<Color3u8> colors;         // RGB
+  std::vector<float> confidence;        // in [0, 1] unless documented otherwise
+  std::vector<int32_t> instance_ids;    // -1 = background / static
+  std::vector<float> intensity;         // LiDAR return intensity (nuScenes: 0..255)
+  std::vector<float> ring;              // LiDAR ring index (nuScenes: 0..31)
+
+  size_t size() const { return positions.size(); }
+  bool empty() const { return positions.empty(); }
+  bool HasColors() const { return !colors.empty(); }
+  bool HasConfidence() const { return !confidence.empty(); }
+  bool HasInstanceIds() const { return !instance_ids.empty(); }
+  bool HasIntensity() const { return !intensity.empty(); }
+  bool HasRing() const { return !ring.empty(); }
+
+  void Reserve(size_t n);
+  // Throws InputError naming `what` if an attribute's size differs from size() or a position is
+  // not finite.
+  void Check(const std::string& what = "point cloud") const;
+  // Axis-aligned bounds of the finite positions (empty box for an empty cloud).
+  Eigen::AlignedBox3f Bounds() const;
+  // Appends `other`; attributes present in only one of the clouds are dropped from the result.
+  void Append(const PointCloud& other);
+  // Keeps the points whose index is in `indices` (in that order), with all attributes.
+  PointCloud Select(const std::vector<size_t>& indices) const;
+};
+
+}  // namespace geodrive

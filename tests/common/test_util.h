@@ -1,0 +1,43 @@
+#pragma once
+// Test helpers shared by all module test suites.
+
+#include <gmock/gmock.h>
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <random>
+#include <string>
+
+namespace geodrive {
+namespace test {
+
+// The seed every test starts from (reset before each test by the shared main).
+constexpr uint32_t kTestSeed = 20250528;
+// A generator re-seeded with kTestSeed before every test.
+std::mt19937& Rng();
+
+// A fresh empty temporary directory for this test (removed at process exit is NOT guaranteed;
+// it lives under the build tree's test_tmp/).
+std::string MakeTempDir(const std::string& name);
+
+// Path to ../shared/data/real/<relative>.
+std::string RealDataPath(const std::string& relative);
+// Path of the built `geodrive` binary.
+std::string GeodriveBinary();
+// Runs a shell command, returns its exit code; captures stdout+stderr into *output if non-null.
+int RunCommand(const std::string& command, std::string* output = nullptr);
+// The interpreter that sees Debian's python3-* packages.
+constexpr const char* kDebianPython = "/usr/bin/python3";
+// True if `/usr/bin/python3 -c "import <module>"` succeeds.
+bool PythonHasModule(const std::string& module);
+
+// GMock matcher: two Eigen matrices of equal shape agree elementwise within `tol`.
+MATCHER_P2(EigenNear, expected, tol, "") {
+  if (arg.rows() != expected.rows() || arg.cols() != expected.cols()) return false;
+  const double err = (arg - expected).cwiseAbs().maxCoeff();
+  *result_listener << "max abs difference " << err;
+  return err <= tol;
+}
+
+}  // namespace test
+}  // namespace geodrive

@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Installs the build tree into a temporary prefix, then configures and builds a downstream project
+# that uses find_package(geodrive) and links geodrive::geometry, and runs it.
+set -euo pipefail
+build_dir="$1"; source_dir="$2"; work="$build_dir/test_tmp/install_consumer"
+rm -rf "$work"; mkdir -p "$work"
+cmake --install "$build_dir" --prefix "$work/prefix" > "$work/install.log"
+cmake -S "$source_dir/tests/install/consumer" -B "$work/build" -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_PREFIX_PATH="$work/prefix" > "$work/configure.log"
+cmake --build "$work/build" -j 2 > "$work/build.log"
+"$work/build/consumer"
