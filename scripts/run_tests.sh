@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Installs dependencies (Debian bookworm, apt), builds everything in ./build and runs all tests.
+# Usage (as root on a fresh machine):  bash scripts/run_tests.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install_deps.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DGEODRIVE_BUILD_TESTS=ON ${GEODRIVE_CMAKE_ARGS:-}
+cmake --build build
+# Force numpy/skimage-dependent tests to run (not skip) where CI requires it.
+export OMP_NUM_THREADS="${OMP_NUM_THREADS:-2}"
+ctest --test-dir build --output-on-failure -j "$(nproc)" --timeout 900
