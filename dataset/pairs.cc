@@ -1,0 +1,212 @@
+#include "dataset/pairs.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "geometry/status.h"
+
+namespace geodrive {
+
+using nlohmann::json;
+
+namespace {
+
+json PoseToJson(const Rigid3d& pose) {
+  const Eigen::Matrix4d m = pose.ToMatrix();
+  json rows = json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+  return rows;
+}
+
+Rigid3d PoseFromJson(const json& j, const std::string& what) {
+  GEODRIVE_CHECK_INPUT(j.is_array() && j.size() == 4, what, ": world_from_cam entry is not 4x4");
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r) {
+    GEODRIVE_CHECK_INPUT(j[r].is_array() && j[r].size() == 4, what,
+                         ": world_from_cam entry is not 4x4");
+    for (int c = 0; c < 4; ++c) m(r, c) = j[r][c].get<double>();
+  }
+  return Rigid3d::FromMatrix(m, 1e-5);
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  GEODRIVE_CHECK_INPUT(in.good(), path, ": cannot open");
+  std::ostringstream os;
+  os << in.rdbuf();
+  return os.str();
+}
+
+}  // namespace
+
+std::string StableHash64(const std::string& text) {
+  uint64_t h = 14695981039346656037ull;  // FNV-1a 64 offset basis
+  for (unsigned char c : text) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+std::string PairMetaToJson(const PairMeta& m) {
+  json j;
+  j["schema"] = "geodrive.pair_meta/1";
+  j["clip_id"] = m.clip_id;
+  j["scene"] = {{"name", m.scene_name}, {"token", m.scene_token}};
+  json frames = json::array();
+  for (const auto& f : m.frames) {
+    frames.push_back({{"sample_data_token", f.sample_data_token},
+                      {"timestamp_us", f.timestamp_us},
+                      {"filename", f.filename}});
+  }
+  j["frames"] = frames;
+  j["num_frames"] = m.frames.size();
+  j["fps"] = m.fps;
+  j["intrinsics"] = {{"fx", m.intrinsics.fx}, {"fy", m.intrinsics.fy},
+                     {"cx", m.intrinsics.cx}, {"cy", m.intrinsics.cy},
+                     {"width", m.intrinsics.width}, {"height", m.intrinsics.height},
+                     {"pixel_convention", "integer-index"}};
+  j["resize_mode"] = m.resize_mode;
+  json poses = json::array();
+  for (const auto& p : m.world_from_cam) poses.push_back(PoseToJson(p));
+  j["world_from_cam"] = poses;
+  j["pose_units"] = m.pose_units;
+  j["scale"] = {{"value", m.scale}, {"source", m.scale_source}, {"report", m.scale_report}};
+  j["geometry_source"] = m.geometry_source;
+  j["preset"] = m.preset;
+  j["edit_mode"] = m.edit_mode;
+  j["options"] = m.options_json.empty() ? json::object() : json::parse(m.options_json);
+  j["options_hash"] = m.options_hash;
+  j["tool_version"] = m.tool_version;
+  json q;
+  q["coverage"] = m.quality.coverage;
+  q["reprojection_rms_px"] = m.quality.reprojection_rms_px;
+  q["scale_inlier_fraction"] = m.quality.scale_inlier_fraction;
+  q["psnr_static"] = m.quality.psnr_static;
+  j["quality"] = q;
+  j["files"] = m.files;
+  return j.dump(2) + "\n";
+}
+
+PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::exception& e) {
+    ThrowInputError(what, "malformed JSON (", e.what(), ")");
+  }
+  PairMeta m;
+  try {
+    m.clip_id = j.at("clip_id").get<std::string>();
+    m.scene_name = j.at("scene").at("name").get<std::string>();
+    m.scene_token = j.at("scene").at("token").get<std::string>();
+    for (const auto& f : j.at("frames")) {
+      m.frames.push_back({f.at("sample_data_token").get<std::string>(),
+                          f.at("timestamp_us").get<int64_t>(), f.at("filename").get<std::string>()});
+    }
+    m.fps = j.at("fps").get<double>();
+    const auto& k = j.at("intrinsics");
+    m.intrinsics = PinholeCamera(k.at("fx").get<double>(), k.at("fy").get<double>(),
+                                 k.at("cx").get<double>(), k.at("cy").get<double>(),
+                                 k.at("width").get<int>(), k.at("height").get<int>());
+    m.resize_mode = j.at("resize_mode").get<std::string>();
+    for (const auto& p : j.at("world_from_cam")) m.world_from_cam.push_back(PoseFromJson(p, what));
+    m.pose_units = j.at("pose_units").get<std::string>();
+    m.scale = j.at("scale").at("value").get<double>();
+    m.scale_source = j.at("scale").at("source").get<std::string>();
+    m.scale_report = j.at("scale").value("report", "");
+    m.geometry_source = j.at("geometry_source").get<std::string>();
+    m.preset = j.value("preset", "");
+    m.edit_mode = j.value("edit_mode", "");
+    m.options_json = j.at("options").dump();
+    m.options_hash = j.at("options_hash").get<std::string>();
+    m.tool_version = j.at("tool_version").get<std::string>();
+    const auto& q = j.at("quality");
+    m.quality.coverage = q.at("coverage").get<std::vector<double>>();
+    m.quality.reprojection_rms_px = q.value("reprojection_rms_px", -1.0);
+    m.quality.scale_inlier_fraction = q.value("scale_inlier_fraction", -1.0);
+    m.quality.psnr_static = q.value("psnr_static", std::vector<double>{});
+    m.files = j.at("files").get<std::map<std::string, std::string>>();
+  } catch (const json::exception& e) {
+    ThrowInputError(what, "missing or mistyped field (", e.what(), ")");
+  }
+  GEODRIVE_CHECK_INPUT(m.world_from_cam.size() == m.frames.size(), what, ": ", m.frames.size(),
+                       " frames but ", m.world_from_cam.size(), " poses");
+  return m;
+}
+
+PairMeta ReadPairMeta(const std::string& pair_dir) {
+  const std::string path = pair_dir + "/meta.json";
+  return PairMetaFromJson(ReadText(path), path);
+}
+
+std::string ManifestEntryToJson(const ManifestEntry& e) {
+  json j = {{"clip_id", e.clip_id},         {"pair_dir", e.pair_dir},
+            {"scene", e.scene_name},         {"num_frames", e.num_frames},
+            {"geometry_source", e.geometry_source}, {"pose_units", e.pose_units},
+            {"mean_coverage", e.mean_coverage},     {"options_hash", e.options_hash}};
+  return j.dump();
+}
+
+ManifestEntry ManifestEntryFromJson(const std::string& line, const std::string& what) {
+  ManifestEntry e;
+  try {
+    const json j = json::parse(line);
+    e.clip_id = j.at("clip_id").get<std::string>();
+    e.pair_dir = j.at("pair_dir").get<std::string>();
+    e.scene_name = j.at("scene").get<std::string>();
+    e.num_frames = j.at("num_frames").get<int>();
+    e.geometry_source = j.at("geometry_source").get<std::string>();
+    e.pose_units = j.at("pose_units").get<std::string>();
+    e.mean_coverage = j.at("mean_coverage").get<double>();
+    e.options_hash = j.at("options_hash").get<std::string>();
+  } catch (const json::exception& ex) {
+    ThrowInputError(what, "bad manifest line (", ex.what(), ")");
+  }
+  return e;
+}
+
+std::vector<ManifestEntry> ReadManifest(const std::string& path) {
+  std::ifstream in(path);
+  GEODRIVE_CHECK_INPUT(in.good(), path, ": cannot open");
+  std::vector<ManifestEntry> out;
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty()) continue;
+    out.push_back(ManifestEntryFromJson(line, path + ":" + std::to_string(n)));
+  }
+  return out;
+}
+
+std::string FailureEntryToJson(const FailureEntry& e) {
+  return json({{"clip_id", e.clip_id}, {"stage", e.stage}, {"error", e.error}}).dump();
+}
+
+std::vector<FailureEntry> ReadFailures(const std::string& path) {
+  std::ifstream in(path);
+  GEODRIVE_CHECK_INPUT(in.good(), path, ": cannot open");
+  std::vector<FailureEntry> out;
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty()) continue;
+    try {
+      const json j = json::parse(line);
+      out.push_back({j.at("clip_id").get<std::string>(), j.at("stage").get<std::string>(),
+                     j.at("error").get<std::string>()});
+    } catch (const json::exception& e) {
+      ThrowInputError(path + ":" + std::to_string(n), "bad failure line (", e.what(), ")");
+    }
+  }
+  return out;
+}
+
+}  // namespace geodrive
