@@ -20,7 +20,8 @@ namespace fs = std::filesystem;
 
 namespace {
 void FsyncPath(const std::string& path, bool directory) {
-  const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
+  const int fd =
+      ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
   if (fd >= 0) {
     ::fsync(fd);
     ::close(fd);
@@ -31,7 +32,8 @@ void FsyncPath(const std::string& path, bool directory) {
 void WriteFileAtomic(const std::string& path, const std::string& content) {
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  GEODRIVE_CHECK_INPUT(fd >= 0, path, ": cannot write (", std::strerror(errno), ")");
+  GEODRIVE_CHECK_INPUT(fd >= 0, path, ": cannot write (", std::strerror(errno),
+                       ")");
   size_t off = 0;
   while (off < content.size()) {
     const ssize_t n = ::write(fd, content.data() + off, content.size() - off);
@@ -45,8 +47,8 @@ void WriteFileAtomic(const std::string& path, const std::string& content) {
   }
   ::fsync(fd);
   ::close(fd);
-  GEODRIVE_CHECK_INPUT(::rename(tmp.c_str(), path.c_str()) == 0, path, ": rename failed (",
-                       std::strerror(errno), ")");
+  GEODRIVE_CHECK_INPUT(::rename(tmp.c_str(), path.c_str()) == 0, path,
+                       ": rename failed (", std::strerror(errno), ")");
 }
 
 void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir) {
@@ -55,14 +57,16 @@ void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir) {
     if (entry.is_regular_file()) FsyncPath(entry.path().string(), false);
   }
   FsyncPath(tmp_dir, true);
-  GEODRIVE_CHECK_INPUT(::rename(tmp_dir.c_str(), final_dir.c_str()) == 0, final_dir,
-                       ": rename from ", tmp_dir, " failed (", std::strerror(errno), ")");
+  GEODRIVE_CHECK_INPUT(::rename(tmp_dir.c_str(), final_dir.c_str()) == 0,
+                       final_dir, ": rename from ", tmp_dir, " failed (",
+                       std::strerror(errno), ")");
   FsyncPath(fs::path(final_dir).parent_path().string(), true);
 }
 
 JsonlAppender::JsonlAppender(const std::string& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  GEODRIVE_CHECK_INPUT(fd_ >= 0, path, ": cannot open for appending (", std::strerror(errno), ")");
+  GEODRIVE_CHECK_INPUT(fd_ >= 0, path, ": cannot open for appending (",
+                       std::strerror(errno), ")");
 }
 
 JsonlAppender::~JsonlAppender() {
@@ -72,16 +76,22 @@ JsonlAppender::~JsonlAppender() {
 void JsonlAppender::Append(const std::string& line) {
   std::lock_guard<std::mutex> lock(mutex_);
   const std::string text = line + "\n";
-  // O_APPEND + one write per line keeps lines whole even with several processes appending.
+  // O_APPEND + one write per line keeps lines whole even with several processes
+  // appending.
   const ssize_t n = ::write(fd_, text.data(), text.size());
-  GEODRIVE_CHECK_INPUT(n == static_cast<ssize_t>(text.size()), path_, ": append failed (",
-                       std::strerror(errno), ")");
+  GEODRIVE_CHECK_INPUT(n == static_cast<ssize_t>(text.size()), path_,
+                       ": append failed (", std::strerror(errno), ")");
   ::fsync(fd_);
 }
 
-ProgressReporter::ProgressReporter(const std::string& label, size_t total, double interval_s,
+ProgressReporter::ProgressReporter(const std::string& label,
+                                   size_t total,
+                                   double interval_s,
                                    bool quiet)
-    : label_(label), total_(total), interval_s_(interval_s), quiet_(quiet),
+    : label_(label),
+      total_(total),
+      interval_s_(interval_s),
+      quiet_(quiet),
       tty_(::isatty(STDERR_FILENO) != 0) {
   start_ = last_print_ = std::chrono::steady_clock::now();
 }
@@ -106,21 +116,23 @@ void ProgressReporter::Finish() {
 void ProgressReporter::Print(bool final) {
   if (quiet_) return;
   const double elapsed =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_)
+          .count();
   const double rate = elapsed > 0 ? done_ / elapsed : 0.0;
   const double eta = rate > 0 && total_ > done_ ? (total_ - done_) / rate : 0.0;
   std::ostringstream os;
   char buf[160];
   if (tty_) {
     const int width = 30;
-    const int filled = total_ ? static_cast<int>(width * done_ / total_) : width;
-    os << "\r" << label_ << " [" << std::string(filled, '#') << std::string(width - filled, '.')
-       << "] ";
+    const int filled =
+        total_ ? static_cast<int>(width * done_ / total_) : width;
+    os << "\r" << label_ << " [" << std::string(filled, '#')
+       << std::string(width - filled, '.') << "] ";
   } else {
     os << label_ << ": ";
   }
-  std::snprintf(buf, sizeof(buf), "%zu/%zu  %.2f/s  elapsed %.0fs  ETA %.0fs", done_, total_,
-                rate, elapsed, eta);
+  std::snprintf(buf, sizeof(buf), "%zu/%zu  %.2f/s  elapsed %.0fs  ETA %.0fs",
+                done_, total_, rate, elapsed, eta);
   os << buf;
   if (!note_.empty()) os << "  " << note_;
   if (tty_) {
@@ -136,8 +148,9 @@ namespace {
 std::atomic<int> g_stop_signals{0};
 void OnStopSignal(int) {
   if (g_stop_signals.fetch_add(1) >= 1) _exit(130);
-  const char msg[] = "\ngeodrive: stop requested; finishing current items (signal again to "
-                     "abort)\n";
+  const char msg[] =
+      "\ngeodrive: stop requested; finishing current items (signal again to "
+      "abort)\n";
   const ssize_t ignored = ::write(STDERR_FILENO, msg, sizeof(msg) - 1);
   (void)ignored;
 }

@@ -1,7 +1,7 @@
 #pragma once
-// Building blocks for long batch jobs: atomic files and folders, append-only JSON-lines logs,
-// progress reporting (bar on a terminal, periodic lines otherwise), and clean stop on SIGINT /
-// SIGTERM.
+// Building blocks for long batch jobs: atomic files and folders, append-only
+// JSON-lines logs, progress reporting (bar on a terminal, periodic lines
+// otherwise), and clean stop on SIGINT / SIGTERM.
 
 #include <chrono>
 #include <cstdio>
@@ -11,16 +11,18 @@
 
 namespace geodrive {
 
-// Writes `content` to `path` through a temporary file in the same folder, fsync and rename, so
-// readers never see a partial file. Throws InputError naming the path on failure.
+// Writes `content` to `path` through a temporary file in the same folder, fsync
+// and rename, so readers never see a partial file. Throws InputError naming the
+// path on failure.
 void WriteFileAtomic(const std::string& path, const std::string& content);
 
-// Renames a completed temporary folder to its final name (atomic on one filesystem) after
-// fsync-ing its files. Throws InputError if `final_dir` already exists or the rename fails.
+// Renames a completed temporary folder to its final name (atomic on one
+// filesystem) after fsync-ing its files. Throws InputError if `final_dir`
+// already exists or the rename fails.
 void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir);
 
-// Appends lines to a JSON-lines file; each Append writes one whole line, flushes and fsyncs
-// (thread-safe within a process).
+// Appends lines to a JSON-lines file; each Append writes one whole line,
+// flushes and fsyncs (thread-safe within a process).
 class JsonlAppender {
  public:
   explicit JsonlAppender(const std::string& path);
@@ -35,11 +37,13 @@ class JsonlAppender {
   std::mutex mutex_;
 };
 
-// Progress of `total` items: a bar with rate and ETA when stderr is a terminal, else one plain
-// line every `interval_s` seconds (and at the end). Thread-safe.
+// Progress of `total` items: a bar with rate and ETA when stderr is a terminal,
+// else one plain line every `interval_s` seconds (and at the end). Thread-safe.
 class ProgressReporter {
  public:
-  ProgressReporter(const std::string& label, size_t total, double interval_s = 10.0,
+  ProgressReporter(const std::string& label,
+                   size_t total,
+                   double interval_s = 10.0,
                    bool quiet = false);
   void Advance(size_t n = 1, const std::string& note = "");
   void Finish();
@@ -55,8 +59,9 @@ class ProgressReporter {
   std::mutex mutex_;
 };
 
-// Installs SIGINT/SIGTERM handlers that set a flag (the first signal asks for a clean stop after
-// the current items; a second one exits immediately with code 130).
+// Installs SIGINT/SIGTERM handlers that set a flag (the first signal asks for a
+// clean stop after the current items; a second one exits immediately with code
+// 130).
 void InstallStopSignalHandlers();
 bool StopRequested();
 // For tests: request/reset a stop without a signal.

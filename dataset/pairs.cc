@@ -1,9 +1,8 @@
 #include "dataset/pairs.h"
 
-#include <nlohmann/json.hpp>
-
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "geometry/status.h"
@@ -17,12 +16,14 @@ namespace {
 json PoseToJson(const Rigid3d& pose) {
   const Eigen::Matrix4d m = pose.ToMatrix();
   json rows = json::array();
-  for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+  for (int r = 0; r < 4; ++r)
+    rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
   return rows;
 }
 
 Rigid3d PoseFromJson(const json& j, const std::string& what) {
-  GEODRIVE_CHECK_INPUT(j.is_array() && j.size() == 4, what, ": world_from_cam entry is not 4x4");
+  GEODRIVE_CHECK_INPUT(j.is_array() && j.size() == 4, what,
+                       ": world_from_cam entry is not 4x4");
   Eigen::Matrix4d m;
   for (int r = 0; r < 4; ++r) {
     GEODRIVE_CHECK_INPUT(j[r].is_array() && j[r].size() == 4, what,
@@ -49,7 +50,8 @@ std::string StableHash64(const std::string& text) {
     h *= 1099511628211ull;
   }
   char buf[17];
-  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(h));
+  std::snprintf(buf, sizeof(buf), "%016llx",
+                static_cast<unsigned long long>(h));
   return buf;
 }
 
@@ -67,20 +69,26 @@ std::string PairMetaToJson(const PairMeta& m) {
   j["frames"] = frames;
   j["num_frames"] = m.frames.size();
   j["fps"] = m.fps;
-  j["intrinsics"] = {{"fx", m.intrinsics.fx}, {"fy", m.intrinsics.fy},
-                     {"cx", m.intrinsics.cx}, {"cy", m.intrinsics.cy},
-                     {"width", m.intrinsics.width}, {"height", m.intrinsics.height},
+  j["intrinsics"] = {{"fx", m.intrinsics.fx},
+                     {"fy", m.intrinsics.fy},
+                     {"cx", m.intrinsics.cx},
+                     {"cy", m.intrinsics.cy},
+                     {"width", m.intrinsics.width},
+                     {"height", m.intrinsics.height},
                      {"pixel_convention", "integer-index"}};
   j["resize_mode"] = m.resize_mode;
   json poses = json::array();
   for (const auto& p : m.world_from_cam) poses.push_back(PoseToJson(p));
   j["world_from_cam"] = poses;
   j["pose_units"] = m.pose_units;
-  j["scale"] = {{"value", m.scale}, {"source", m.scale_source}, {"report", m.scale_report}};
+  j["scale"] = {{"value", m.scale},
+                {"source", m.scale_source},
+                {"report", m.scale_report}};
   j["geometry_source"] = m.geometry_source;
   j["preset"] = m.preset;
   j["edit_mode"] = m.edit_mode;
-  j["options"] = m.options_json.empty() ? json::object() : json::parse(m.options_json);
+  j["options"] =
+      m.options_json.empty() ? json::object() : json::parse(m.options_json);
   j["options_hash"] = m.options_hash;
   j["tool_version"] = m.tool_version;
   json q;
@@ -107,15 +115,18 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     m.scene_token = j.at("scene").at("token").get<std::string>();
     for (const auto& f : j.at("frames")) {
       m.frames.push_back({f.at("sample_data_token").get<std::string>(),
-                          f.at("timestamp_us").get<int64_t>(), f.at("filename").get<std::string>()});
+                          f.at("timestamp_us").get<int64_t>(),
+                          f.at("filename").get<std::string>()});
     }
     m.fps = j.at("fps").get<double>();
     const auto& k = j.at("intrinsics");
-    m.intrinsics = PinholeCamera(k.at("fx").get<double>(), k.at("fy").get<double>(),
-                                 k.at("cx").get<double>(), k.at("cy").get<double>(),
-                                 k.at("width").get<int>(), k.at("height").get<int>());
+    m.intrinsics =
+        PinholeCamera(k.at("fx").get<double>(), k.at("fy").get<double>(),
+                      k.at("cx").get<double>(), k.at("cy").get<double>(),
+                      k.at("width").get<int>(), k.at("height").get<int>());
     m.resize_mode = j.at("resize_mode").get<std::string>();
-    for (const auto& p : j.at("world_from_cam")) m.world_from_cam.push_back(PoseFromJson(p, what));
+    for (const auto& p : j.at("world_from_cam"))
+      m.world_from_cam.push_back(PoseFromJson(p, what));
     m.pose_units = j.at("pose_units").get<std::string>();
     m.scale = j.at("scale").at("value").get<double>();
     m.scale_source = j.at("scale").at("source").get<std::string>();
@@ -135,8 +146,9 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
   } catch (const json::exception& e) {
     ThrowInputError(what, "missing or mistyped field (", e.what(), ")");
   }
-  GEODRIVE_CHECK_INPUT(m.world_from_cam.size() == m.frames.size(), what, ": ", m.frames.size(),
-                       " frames but ", m.world_from_cam.size(), " poses");
+  GEODRIVE_CHECK_INPUT(m.world_from_cam.size() == m.frames.size(), what, ": ",
+                       m.frames.size(), " frames but ", m.world_from_cam.size(),
+                       " poses");
   return m;
 }
 
@@ -146,14 +158,19 @@ PairMeta ReadPairMeta(const std::string& pair_dir) {
 }
 
 std::string ManifestEntryToJson(const ManifestEntry& e) {
-  json j = {{"clip_id", e.clip_id},         {"pair_dir", e.pair_dir},
-            {"scene", e.scene_name},         {"num_frames", e.num_frames},
-            {"geometry_source", e.geometry_source}, {"pose_units", e.pose_units},
-            {"mean_coverage", e.mean_coverage},     {"options_hash", e.options_hash}};
+  json j = {{"clip_id", e.clip_id},
+            {"pair_dir", e.pair_dir},
+            {"scene", e.scene_name},
+            {"num_frames", e.num_frames},
+            {"geometry_source", e.geometry_source},
+            {"pose_units", e.pose_units},
+            {"mean_coverage", e.mean_coverage},
+            {"options_hash", e.options_hash}};
   return j.dump();
 }
 
-ManifestEntry ManifestEntryFromJson(const std::string& line, const std::string& what) {
+ManifestEntry ManifestEntryFromJson(const std::string& line,
+                                    const std::string& what) {
   ManifestEntry e;
   try {
     const json j = json::parse(line);
@@ -186,7 +203,8 @@ std::vector<ManifestEntry> ReadManifest(const std::string& path) {
 }
 
 std::string FailureEntryToJson(const FailureEntry& e) {
-  return json({{"clip_id", e.clip_id}, {"stage", e.stage}, {"error", e.error}}).dump();
+  return json({{"clip_id", e.clip_id}, {"stage", e.stage}, {"error", e.error}})
+      .dump();
 }
 
 std::vector<FailureEntry> ReadFailures(const std::string& path) {
@@ -200,10 +218,12 @@ std::vector<FailureEntry> ReadFailures(const std::string& path) {
     if (line.empty()) continue;
     try {
       const json j = json::parse(line);
-      out.push_back({j.at("clip_id").get<std::string>(), j.at("stage").get<std::string>(),
+      out.push_back({j.at("clip_id").get<std::string>(),
+                     j.at("stage").get<std::string>(),
                      j.at("error").get<std::string>()});
     } catch (const json::exception& e) {
-      ThrowInputError(path + ":" + std::to_string(n), "bad failure line (", e.what(), ")");
+      ThrowInputError(path + ":" + std::to_string(n), "bad failure line (",
+                      e.what(), ")");
     }
   }
   return out;

@@ -1,12 +1,15 @@
 #pragma once
-// Training pairs written by `geodrive build-dataset` and read by the diffusion runtime.
+// Training pairs written by `geodrive build-dataset` and read by the diffusion
+// runtime.
 //
 // Layout of a build output OUT/:
-//   pairs/<clip_id>/{gt.mp4, cond.mp4, first_frame.png, boxes.json, meta.json, preview.png}
-//   manifest.jsonl   one line per finished pair (schema data_schema/manifest_line.schema.json)
-//   failures.jsonl   one line per failed clip: {"clip_id", "stage", "error"}
+//   pairs/<clip_id>/{gt.mp4, cond.mp4, first_frame.png, boxes.json, meta.json,
+//   preview.png} manifest.jsonl   one line per finished pair (schema
+//   data_schema/manifest_line.schema.json) failures.jsonl   one line per failed
+//   clip: {"clip_id", "stage", "error"}
 // meta.json follows data_schema/pair_meta.schema.json. Pairs are written to
-// pairs/.tmp-<clip_id>/ and renamed when complete, so a pair folder either is whole or absent.
+// pairs/.tmp-<clip_id>/ and renamed when complete, so a pair folder either is
+// whole or absent.
 
 #include <cstdint>
 #include <map>
@@ -25,10 +28,11 @@ struct PairFrame {
 };
 
 struct PairQuality {
-  std::vector<double> coverage;      // fraction of valid condition pixels per frame
-  double reprojection_rms_px = -1;   // pose refinement RMS (-1 when not run)
-  double scale_inlier_fraction = -1; // LiDAR scale fit (-1 when not run)
-  std::vector<double> psnr_static;   // optional: condition vs GT PSNR in static pixels per frame
+  std::vector<double> coverage;  // fraction of valid condition pixels per frame
+  double reprojection_rms_px = -1;    // pose refinement RMS (-1 when not run)
+  double scale_inlier_fraction = -1;  // LiDAR scale fit (-1 when not run)
+  std::vector<double>
+      psnr_static;  // optional: condition vs GT PSNR in static pixels per frame
 };
 
 struct PairMeta {
@@ -37,26 +41,30 @@ struct PairMeta {
   std::string scene_token;
   std::vector<PairFrame> frames;
   double fps = 10.0;
-  PinholeCamera intrinsics;         // at the output size
-  std::string resize_mode;          // "resize" or "center-crop"
-  std::vector<Rigid3d> world_from_cam;  // per frame, world = first camera unless said otherwise
-  std::string pose_units;           // "metres" or "monst3r"
-  double scale = 1.0;               // metres per MonST3R unit (1 when pose_units is metres)
-  std::string scale_source;         // "lidar", "ego", "none"
-  std::string scale_report;         // human-readable summary of the scale fit
-  std::string geometry_source;      // "monst3r" or "lidar"
-  std::string preset;               // "paper" or "geodrive-compat"
-  std::string edit_mode;            // "3d", "2d" or "none"
-  std::string options_json;         // the effective options as a JSON object (string)
-  std::string options_hash;         // 16 hex digits of a hash of options_json
+  PinholeCamera intrinsics;  // at the output size
+  std::string resize_mode;   // "resize" or "center-crop"
+  std::vector<Rigid3d>
+      world_from_cam;  // per frame, world = first camera unless said otherwise
+  std::string pose_units;  // "metres" or "monst3r"
+  double scale = 1.0;  // metres per MonST3R unit (1 when pose_units is metres)
+  std::string scale_source;     // "lidar", "ego", "none"
+  std::string scale_report;     // human-readable summary of the scale fit
+  std::string geometry_source;  // "monst3r" or "lidar"
+  std::string preset;           // "paper" or "geodrive-compat"
+  std::string edit_mode;        // "3d", "2d" or "none"
+  std::string options_json;  // the effective options as a JSON object (string)
+  std::string options_hash;  // 16 hex digits of a hash of options_json
   std::string tool_version;
   PairQuality quality;
-  std::map<std::string, std::string> files;  // role -> file name inside the pair folder
+  std::map<std::string, std::string>
+      files;  // role -> file name inside the pair folder
 };
 
-// Serialises to / parses from the meta.json text. Parse errors throw InputError naming `what`.
+// Serialises to / parses from the meta.json text. Parse errors throw InputError
+// naming `what`.
 std::string PairMetaToJson(const PairMeta& meta);
-PairMeta PairMetaFromJson(const std::string& text, const std::string& what = "meta.json");
+PairMeta PairMetaFromJson(const std::string& text,
+                          const std::string& what = "meta.json");
 PairMeta ReadPairMeta(const std::string& pair_dir);
 
 struct ManifestEntry {
@@ -70,8 +78,10 @@ struct ManifestEntry {
   std::string options_hash;
 };
 std::string ManifestEntryToJson(const ManifestEntry& entry);
-ManifestEntry ManifestEntryFromJson(const std::string& line, const std::string& what);
-// Reads every line of a manifest.jsonl; throws InputError naming the file and line on bad JSON.
+ManifestEntry ManifestEntryFromJson(const std::string& line,
+                                    const std::string& what);
+// Reads every line of a manifest.jsonl; throws InputError naming the file and
+// line on bad JSON.
 std::vector<ManifestEntry> ReadManifest(const std::string& path);
 
 struct FailureEntry {
@@ -82,7 +92,8 @@ struct FailureEntry {
 std::string FailureEntryToJson(const FailureEntry& entry);
 std::vector<FailureEntry> ReadFailures(const std::string& path);
 
-// 16 lowercase hex digits of FNV-1a 64 over `text` (stable across platforms and runs).
+// 16 lowercase hex digits of FNV-1a 64 over `text` (stable across platforms and
+// runs).
 std::string StableHash64(const std::string& text);
 
 }  // namespace geodrive

@@ -11,10 +11,14 @@
 namespace geodrive {
 
 void DepthScaleOptions::Check() const {
-  GEODRIVE_CHECK_INPUT(ransac_iterations >= 1, "depth scale: ransac_iterations must be >= 1");
-  GEODRIVE_CHECK_INPUT(inlier_log_threshold > 0, "depth scale: inlier_log_threshold must be > 0");
-  GEODRIVE_CHECK_INPUT(irls_iterations >= 0, "depth scale: irls_iterations must be >= 0");
-  GEODRIVE_CHECK_INPUT(cauchy_scale > 0, "depth scale: cauchy_scale must be > 0");
+  GEODRIVE_CHECK_INPUT(ransac_iterations >= 1,
+                       "depth scale: ransac_iterations must be >= 1");
+  GEODRIVE_CHECK_INPUT(inlier_log_threshold > 0,
+                       "depth scale: inlier_log_threshold must be > 0");
+  GEODRIVE_CHECK_INPUT(irls_iterations >= 0,
+                       "depth scale: irls_iterations must be >= 0");
+  GEODRIVE_CHECK_INPUT(cauchy_scale > 0,
+                       "depth scale: cauchy_scale must be > 0");
   GEODRIVE_CHECK_INPUT(min_points >= 1, "depth scale: min_points must be >= 1");
 }
 
@@ -35,15 +39,18 @@ double Percentile(std::vector<double> v, double p) {
 }
 }  // namespace
 
-DepthScaleResult FitDepthScale(const std::vector<double>& d_ref, const std::vector<double>& d_est,
+DepthScaleResult FitDepthScale(const std::vector<double>& d_ref,
+                               const std::vector<double>& d_est,
                                const DepthScaleOptions& options) {
   options.Check();
-  GEODRIVE_CHECK_INPUT(d_ref.size() == d_est.size(), "depth scale: ", d_ref.size(),
-                       " reference depths but ", d_est.size(), " estimated depths");
+  GEODRIVE_CHECK_INPUT(d_ref.size() == d_est.size(),
+                       "depth scale: ", d_ref.size(), " reference depths but ",
+                       d_est.size(), " estimated depths");
   DepthScaleResult result;
   std::vector<double> log_ratio, ref, est;
   for (size_t i = 0; i < d_ref.size(); ++i) {
-    if (std::isfinite(d_ref[i]) && std::isfinite(d_est[i]) && d_ref[i] > 0 && d_est[i] > 0) {
+    if (std::isfinite(d_ref[i]) && std::isfinite(d_est[i]) && d_ref[i] > 0 &&
+        d_est[i] > 0) {
       log_ratio.push_back(std::log(d_ref[i] / d_est[i]));
       ref.push_back(d_ref[i]);
       est.push_back(d_est[i]);
@@ -51,7 +58,8 @@ DepthScaleResult FitDepthScale(const std::vector<double>& d_ref, const std::vect
   }
   result.num_points = static_cast<int>(log_ratio.size());
   if (result.num_points < options.min_points) {
-    result.message = "too few valid depth pairs (" + std::to_string(result.num_points) + " < " +
+    result.message = "too few valid depth pairs (" +
+                     std::to_string(result.num_points) + " < " +
                      std::to_string(options.min_points) + ")";
     return result;
   }
@@ -72,7 +80,8 @@ DepthScaleResult FitDepthScale(const std::vector<double>& d_ref, const std::vect
       if (n > best) best = n, log_s = candidate;
     }
     std::vector<double> inl;
-    for (double r : log_ratio) if (std::abs(r - log_s) < thr) inl.push_back(r);
+    for (double r : log_ratio)
+      if (std::abs(r - log_s) < thr) inl.push_back(r);
     if (!inl.empty()) log_s = Median(inl);
   }
   // IRLS with Cauchy weights on the log residuals.
@@ -90,6 +99,18 @@ DepthScaleResult FitDepthScale(const std::vector<double>& d_ref, const std::vect
     log_s = next;
     if (converged) break;
   }
+  // Final least-squares refinement on the inliers only: outliers keep a small
+  // Cauchy weight in IRLS, which biases the estimate slightly; the inlier mean
+  // of log ratios does not.
+  for (int it = 0; it < 3; ++it) {
+    double sum = 0;
+    int n = 0;
+    for (double r : log_ratio) {
+      if (std::abs(r - log_s) < thr) sum += r, ++n;
+    }
+    if (n == 0) break;
+    log_s = sum / n;
+  }
   result.scale = std::exp(log_s);
   if (!std::isfinite(result.scale) || result.scale <= 0) {
     result.message = "fitted scale is not finite and positive";
@@ -102,13 +123,16 @@ DepthScaleResult FitDepthScale(const std::vector<double>& d_ref, const std::vect
     }
   }
   result.num_inliers = static_cast<int>(residuals.size());
-  result.inlier_fraction = static_cast<double>(result.num_inliers) / result.num_points;
+  result.inlier_fraction =
+      static_cast<double>(result.num_inliers) / result.num_points;
   result.residual_p50 = Percentile(residuals, 0.5);
   result.residual_p90 = Percentile(residuals, 0.9);
   result.residual_p99 = Percentile(residuals, 0.99);
   result.success = result.num_inliers >= options.min_points;
-  result.message = result.success ? "ok" : "too few inliers (" +
-                                               std::to_string(result.num_inliers) + ")";
+  result.message =
+      result.success
+          ? "ok"
+          : "too few inliers (" + std::to_string(result.num_inliers) + ")";
   return result;
 }
 
@@ -118,16 +142,20 @@ std::string DepthScaleResult::BriefReport() const {
     os << "depth scale failed: " << message;
     return os.str();
   }
-  os << "scale " << scale << ", " << num_inliers << "/" << num_points << " inliers ("
-     << 100.0 * inlier_fraction << "%), |residual| p50 " << residual_p50 << " p90 "
-     << residual_p90 << " p99 " << residual_p99;
+  os << "scale " << scale << ", " << num_inliers << "/" << num_points
+     << " inliers (" << 100.0 * inlier_fraction << "%), |residual| p50 "
+     << residual_p50 << " p90 " << residual_p90 << " p99 " << residual_p99;
   return os.str();
 }
 
-double SampleDepthBilinear(const cv::Mat& depth, const cv::Mat& invalid_mask, double u, double v) {
+double SampleDepthBilinear(const cv::Mat& depth,
+                           const cv::Mat& invalid_mask,
+                           double u,
+                           double v) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (!(u >= 0 && v >= 0)) return nan;
-  const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
+  const int x0 = static_cast<int>(std::floor(u)),
+            y0 = static_cast<int>(std::floor(v));
   const int x1 = x0 + 1, y1 = y0 + 1;
   if (x1 >= depth.cols || y1 >= depth.rows) {
     // Exactly on the last row/column: allow when the fractional part is zero.
@@ -143,7 +171,8 @@ double SampleDepthBilinear(const cv::Mat& depth, const cv::Mat& invalid_mask, do
       if (x >= depth.cols || y >= depth.rows) return nan;
       const float d = depth.at<float>(y, x);
       if (!std::isfinite(d) || d <= 0) return nan;
-      if (!invalid_mask.empty() && invalid_mask.at<uint8_t>(y, x) != 0) return nan;
+      if (!invalid_mask.empty() && invalid_mask.at<uint8_t>(y, x) != 0)
+        return nan;
       acc += w * d;
       wsum += w;
     }
