@@ -1,0 +1,98 @@
+#pragma once
+// `geodrive build-dataset`: nuScenes-like clips -> condition/video training
+// pairs.
+//
+// Per clip (25 CAM_FRONT frames): GT frames at the output size, a frame-0 point
+// cloud (MonST3R pointmap, metric through the LiDAR scale when LiDAR is
+// present; or aggregated static LiDAR), rendered along the clip trajectory with
+// dynamic editing from the clip's boxes, written as a pair folder
+// (dataset/pairs.h). Jobs are resumable (pairs are committed atomically, a
+// rerun skips finished pairs), thread-parallel over clips, and shardable
+// (--shard i/N, MPI ranks).
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "geometry/camera.h"
+
+namespace geodrive {
+
+enum class GeometrySource { kMonst3r, kLidar };
+std::string ToString(GeometrySource source);
+GeometrySource ParseGeometrySource(const std::string& text);
+
+struct BuildDatasetOptions {
+  std::string dataroot;  // nuScenes root (holds <version>/, samples/, sweeps/)
+  std::string version = "v1.0-mini";
+  std::string
+      monst3r_root;  // <root>/<clip_id>/ MonST3R folders (geometry monst3r)
+  std::string out;   // output folder
+  // monst3r when monst3r_root is set, lidar otherwise (the default chosen by
+  // Check()).
+  std::string geometry = "auto";
+  int threads = 1;  // clips in parallel
+  int shard_index = 0, shard_count = 1;
+  std::string preset = "paper";    // paper | geodrive-compat
+  std::string edit_mode = "3d";    // 3d | 2d | none
+  std::vector<std::string> clips;  // restrict to these clip ids (empty = all)
+  int max_clips =
+      0;  // 0 = no limit (after sharding filter: first N of the list)
+  // Clip selection (dataset/clips.h).
+  int clip_frames = 25;
+  int clip_stride = 6;
+  // Output video.
+  int width = 720, height = 480;
+  std::string resize_mode =
+      "resize";       // resize (GeoDrive training) | center-crop (inference)
+  double fps = 10.0;  // nuScenes 12 Hz clips are labelled 10 fps (as Vista)
+  bool lossless_frames =
+      false;  // also write gt_frames/ and cond_frames/ PNG sequences
+  // Geometry filters (paper: tau 0.65, 0.1 - 100 m).
+  double min_confidence = 0.65;
+  double min_depth_m = 0.1, max_depth_m = 100.0;
+  // Paper preset splat radius in output pixels (the 512x288 pointmap is sparser
+  // than 720x480).
+  double splat_radius_px = 1.0;
+  // LiDAR geometry source: sweeps within [t0 - before, t0 + after] (s) are
+  // aggregated.
+  double lidar_window_before_s = 0.5, lidar_window_after_s = 1.5;
+  bool quiet = false;
+  // Throws InputError naming the bad option; resolves `geometry` "auto".
+  void Check();
+  // The options that affect the content of a pair, as a JSON object (stable key
+  // order).
+  std::string ContentOptionsJson() const;
+};
+
+struct BuildDatasetSummary {
+  int clips_total = 0;  // clips in this run's list (after --clips, shard, max)
+  int built = 0;        // pairs built now
+  int skipped_existing = 0;  // pairs already present (resume)
+  int skipped_no_monst3r =
+      0;  // clips without a MonST3R folder (geometry monst3r)
+  int failed = 0;
+  bool interrupted = false;  // stopped by SIGINT/SIGTERM
+  std::map<std::string, int> failures_by_stage;
+  std::map<std::string, double>
+      seconds_by_stage;  // summed over clips (CPU-side wall time)
+  double seconds_total = 0;
+  std::string BriefReport() const;
+};
+
+// Runs the build. Per-clip failures are recorded in failures.jsonl and counted,
+// never thrown; InputError is thrown for bad options or an unreadable dataset.
+BuildDatasetSummary BuildDataset(BuildDatasetOptions options);
+
+// Merges shard outputs in `out`: manifest.jsonl and failures.jsonl rebuilt
+// (sorted by clip id) from the pair folders and the shard failure logs, and
+// report.html written. Returns the number of pairs.
+int MergeBuildOutputs(const std::string& out);
+
+// Writes OUT/report.html (counts, timing, coverage and scale histograms,
+// previews, failures).
+void WriteBuildReport(const std::string& out,
+                      const BuildDatasetSummary* summary);
+
+}  // namespace geodrive
