@@ -9,7 +9,7 @@ PACKAGES=(
   libopencv-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libopenmpi-dev openmpi-bin
-  python3 python3-numpy python3-jsonschema
+  python3 python3-numpy python3-jsonschema python3-skimage python3-scipy
 )
 if [[ "${GEODRIVE_WITH_TORCH:-0}" == "1" ]]; then
   PACKAGES+=(libtorch-dev python3-torch)

@@ -1,0 +1,53 @@
+#pragma once
+// The outputs of `geodrive eval`: report.json, a per-video CSV, a Markdown
+// table in the paper's layout (GeoDrive Table 1 columns) and a PNG plot
+// (per-frame PSNR/SSIM, trajectories top view).
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "eval/image_metrics.h"
+#include "eval/trajectory_metrics.h"
+
+namespace geodrive {
+
+struct VideoEvalRecord {
+  std::string id;
+  std::string pred_path;
+  std::string gt_path;
+  VideoScores scores;
+};
+
+// Mean and population standard deviation over videos (common_metrics'
+// convention).
+struct MeanStd {
+  double mean = 0;
+  double std = 0;
+  int count = 0;
+};
+
+struct EvalReport {
+  std::string pred;  // as given on the command line
+  std::string gt;
+  std::vector<std::string> metrics;  // requested, in order
+  std::string method = "ours";       // row label of the Markdown table
+  FrameMetricsOptions frame_options;
+  std::vector<VideoEvalRecord> videos;
+  std::optional<TrajectoryErrors> trajectory;  // already scaled when x100
+  bool x100 = false;
+  // Camera centres for the plot (ground truth and aligned prediction).
+  std::vector<Eigen::Vector3d> gt_centres;
+  std::vector<Eigen::Vector3d> pred_centres_aligned;
+
+  // Dataset-level statistic of a per-video mean ("psnr", "ssim", "psnr_y",
+  // "ssim_y").
+  MeanStd Aggregate(const std::string& metric) const;
+};
+
+// Writes `json_path` and, next to it with the same stem, .csv, .md and .png.
+// Throws InputError if a file cannot be written. Returns the paths written.
+std::vector<std::string> WriteEvalOutputs(const EvalReport& report,
+                                          const std::string& json_path);
+
+}  // namespace geodrive

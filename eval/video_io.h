@@ -1,0 +1,60 @@
+#pragma once
+// Video inputs of `geodrive eval`: MP4 (or any container OpenCV's FFmpeg
+// backend reads), folders of frames (PNG/JPG sorted by file name), folders of
+// such videos, and the dataset's pairs folders (pairs/<clip_id>/gt.mp4,
+// cond.mp4, ...). Frames are RGB CV_8UC3.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+namespace geodrive {
+
+// True for .mp4 .avi .mkv .mov .webm (case-insensitive).
+bool IsVideoFile(const std::string& path);
+// True for .png .jpg .jpeg (case-insensitive).
+bool IsImageFile(const std::string& path);
+
+// Reads every frame of a video file or frame folder as RGB CV_8UC3. Throws
+// InputError naming the path if it does not exist, cannot be decoded, has no
+// frames, or frames change size.
+std::vector<cv::Mat> ReadVideoFrames(const std::string& path);
+
+// Writes RGB CV_8UC3 frames as a video file (.mp4: 'mp4v', .avi: 'MJPG') or,
+// when `path` has no video extension, as a folder of PNGs 00000.png, 00001.png,
+// ... (lossless). Throws InputError.
+void WriteVideoFrames(const std::string& path,
+                      const std::vector<cv::Mat>& frames,
+                      double fps = 8);
+
+// One video of a collection: id (clip id or file stem) and where its frames
+// are.
+struct VideoSource {
+  std::string id;
+  std::string path;  // video file or frame folder
+};
+
+// The videos under `path`:
+//  - a video file or a frame folder: one video (id = file stem / folder name);
+//  - a pairs folder (sub-folders holding `member`, e.g. pairs/<clip>/gt.mp4):
+//  one per clip, id =
+//    clip folder name; `member` may also name a frame sub-folder
+//    (pairs/<clip>/gt/);
+//  - a folder of video files and/or frame sub-folders: one per entry, id = stem
+//  / name.
+// Sorted by id. Throws InputError if nothing usable is found.
+std::vector<VideoSource> ListVideos(const std::string& path,
+                                    const std::string& member);
+
+struct VideoPairSource {
+  std::string id;
+  std::string pred_path;
+  std::string gt_path;
+};
+
+// Pairs predicted and ground-truth videos by id (two single videos pair
+// regardless of names). Throws InputError listing ids present on one side only.
+std::vector<VideoPairSource> MatchVideos(const std::vector<VideoSource>& pred,
+                                         const std::vector<VideoSource>& gt);
+
+}  // namespace geodrive

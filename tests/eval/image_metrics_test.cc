@@ -1,0 +1,225 @@
+// PSNR / SSIM against Debian's python3-skimage and against hand-computable
+// cases.
+
+#include "eval/image_metrics.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "geometry/npy.h"
+#include "geometry/status.h"
+#include "tests/common/test_util.h"
+
+namespace geodrive {
+namespace {
+
+// A textured image (smooth blobs + stripes + noise) with saturated corners, RGB
+// or gray.
+cv::Mat MakeImage(int rows, int cols, int channels, int noise, uint32_t seed) {
+  std::mt19937 rng(seed);
+  cv::Mat base(rows, cols, CV_8UC(channels));
+  cv::randu(base, 0, 256);
+  cv::GaussianBlur(base, base, cv::Size(0, 0), 2.0);
+  for (int r = 0; r < rows; ++r) {
+    uint8_t* p = base.ptr<uint8_t>(r);
+    for (int c = 0; c < cols * channels; ++c) {
+      int v = p[c] + static_cast<int>(40 * std::sin(0.3 * c + 0.1 * r));
+      if (noise > 0) v += static_cast<int>(rng() % (2 * noise + 1)) - noise;
+      if (r < rows / 5 && c < cols * channels / 5) v = 255;  // saturated block
+      if (r > rows - rows / 6 && c > cols * channels - cols * channels / 6)
+        v = 0;
+      p[c] = static_cast<uint8_t>(std::clamp(v, 0, 255));
+    }
+  }
+  return base;
+}
+
+cv::Mat Perturb(const cv::Mat& image, int noise, uint32_t seed) {
+  std::mt19937 rng(seed);
+  cv::Mat out = image.clone();
+  uint8_t* p = out.data;
+  for (size_t i = 0; i < out.total() * out.channels(); ++i) {
+    const int v = p[i] + static_cast<int>(rng() % (2 * noise + 1)) - noise;
+    p[i] = static_cast<uint8_t>(std::clamp(v, 0, 255));
+  }
+  return out;
+}
+
+void SaveNpy(const std::string& path, const cv::Mat& m) {
+  std::vector<int64_t> shape = {m.rows, m.cols};
+  if (m.channels() > 1) shape.push_back(m.channels());
+  if (m.depth() == CV_8U) {
+    WriteNpy(path, NpyArray::Uint8(shape, m.ptr<uint8_t>()));
+  } else {
+    WriteNpy(path, NpyArray::Float64(shape, m.ptr<double>()));
+  }
+}
+
+// Runs tests/eval/skimage_reference.py; returns {psnr, ssim}.
+std::pair<double, double> SkimageReference(const cv::Mat& a,
+                                           const cv::Mat& b,
+                                           bool luma) {
+  const std::string dir = test::MakeTempDir("skimage_ref");
+  SaveNpy(dir + "/a.npy", a);
+  SaveNpy(dir + "/b.npy", b);
+  std::string out;
+  const int rc = test::RunCommand(
+      std::string(test::kDebianPython) +
+          " " GEODRIVE_SOURCE_DIR "/tests/eval/skimage_reference.py " + dir +
+          "/a.npy " + dir + "/b.npy" + (luma ? " luma" : ""),
+      &out);
+  EXPECT_EQ(rc, 0) << out;
+  // Last line holds the numbers (warnings may precede it).
+  const size_t end = out.find_last_not_of("\n");
+  const size_t start = out.find_last_of('\n', end);
+  std::istringstream line(
+      out.substr(start == std::string::npos ? 0 : start + 1));
+  double psnr = NAN, ssim = NAN;
+  line >> psnr >> ssim;
+  return {psnr, ssim};
+}
+
+bool HaveSkimage() {
+  if (test::PythonHasModule("skimage")) return true;
+  std::fprintf(stderr,
+               "*** SKIPPED: /usr/bin/python3 has no skimage (apt-get install "
+               "python3-skimage) "
+               "***\n");
+  return false;
+}
+
+struct Case {
+  int rows, cols, channels, noise;
+};
+
+TEST(ImageMetrics, MatchesSkimageOnGeneratedImages) {
+  if (!HaveSkimage()) GTEST_SKIP() << "python3-skimage is not installed";
+  const Case cases[] = {{64, 80, 3, 20},  {11, 11, 3, 30}, {37, 23, 1, 5},
+                        {120, 97, 3, 60}, {48, 720, 3, 3}, {30, 41, 1, 120}};
+  uint32_t seed = 1;
+  for (const Case& c : cases) {
+    const cv::Mat gt = MakeImage(c.rows, c.cols, c.channels, 10, seed++);
+    const cv::Mat pred = Perturb(gt, c.noise, seed++);
+    const auto [ref_psnr, ref_ssim] = SkimageReference(gt, pred, false);
+    const double psnr = Psnr(gt, pred);
+    const double ssim = Ssim(gt, pred);
+    std::printf(
+        "%dx%dx%d noise %d: PSNR %.10f (skimage %.10f), SSIM %.12f (skimage "
+        "%.12f)\n",
+        c.cols, c.rows, c.channels, c.noise, psnr, ref_psnr, ssim, ref_ssim);
+    // Same formulas in float64: only summation order differs (~1e-13); 1e-4 is
+    // the contract.
+    EXPECT_NEAR(psnr, ref_psnr, 1e-9);
+    EXPECT_NEAR(ssim, ref_ssim, 1e-9);
+  }
+}
+
+TEST(ImageMetrics, LumaMatchesSkimage) {
+  if (!HaveSkimage()) GTEST_SKIP() << "python3-skimage is not installed";
+  const cv::Mat gt = MakeImage(50, 70, 3, 10, 7);
+  const cv::Mat pred = Perturb(gt, 25, 8);
+  const auto [ref_psnr, ref_ssim] = SkimageReference(gt, pred, true);
+  const cv::Mat yg = LumaBt601(gt), yp = LumaBt601(pred);
+  std::printf(
+      "luma: PSNR-Y %.10f (skimage %.10f), SSIM-Y %.12f (skimage %.12f)\n",
+      Psnr(yg, yp), ref_psnr, Ssim(yg, yp), ref_ssim);
+  EXPECT_NEAR(Psnr(yg, yp), ref_psnr, 1e-9);
+  EXPECT_NEAR(Ssim(yg, yp), ref_ssim, 1e-9);
+}
+
+TEST(ImageMetrics, FusedKernelEqualsGenericFilterPath) {
+  SsimOptions generic;
+  generic.fused_kernel = false;
+  for (int channels : {1, 3}) {
+    const cv::Mat a = MakeImage(45, 61, channels, 10, 11);
+    const cv::Mat b = Perturb(a, 40, 12);
+    EXPECT_NEAR(Ssim(a, b), Ssim(a, b, generic), 1e-12) << channels;
+    cv::Mat fa, fb;  // float64 input takes the same route
+    a.convertTo(fa, CV_64F);
+    b.convertTo(fb, CV_64F);
+    EXPECT_NEAR(Ssim(fa, fb), Ssim(a, b), 1e-12) << channels;
+  }
+}
+
+TEST(ImageMetrics, SsimClosedFormOnFlatImages) {
+  // Flat images: variances vanish, SSIM = (2 m1 m2 + C1) / (m1^2 + m2^2 + C1)
+  // for any window.
+  for (double truncate :
+       {3.5, 2.8, 4.2}) {  // radius 5 (fused), 4 and 6 (generic)
+    SsimOptions options;
+    options.truncate = truncate;
+    const cv::Mat a(40, 50, CV_8UC3, cv::Scalar(100, 100, 100));
+    const cv::Mat b(40, 50, CV_8UC3, cv::Scalar(130, 130, 130));
+    const double c1 = std::pow(0.01 * 255, 2);
+    const double expected =
+        (2.0 * 100 * 130 + c1) / (100.0 * 100 + 130.0 * 130 + c1);
+    EXPECT_NEAR(Ssim(a, b, options), expected, 1e-12)
+        << "truncate " << truncate;
+    const cv::Mat t = MakeImage(40, 50, 3, 10, 3);
+    EXPECT_NEAR(Ssim(t, t, options), 1.0, 1e-12);
+  }
+}
+
+TEST(ImageMetrics, PsnrHandComputed) {
+  cv::Mat a(10, 10, CV_8UC3, cv::Scalar(10, 20, 30));
+  cv::Mat b = a.clone();
+  b.at<cv::Vec3b>(0, 0)[0] = 20;  // one element off by 10: MSE = 100 / 300
+  const double expected = 10 * std::log10(255.0 * 255.0 / (100.0 / 300.0));
+  EXPECT_NEAR(Psnr(a, b), expected, 1e-12);
+  EXPECT_EQ(Psnr(a, a), 100.0);  // identical -> the cap, not +inf
+  PsnrOptions unit;
+  unit.data_range = 1.0;
+  cv::Mat fa, fb;
+  a.convertTo(fa, CV_64F, 1 / 255.0);
+  b.convertTo(fb, CV_64F, 1 / 255.0);
+  EXPECT_NEAR(Psnr(fa, fb, unit), expected,
+              1e-9);  // [0, 1] frames, R = 1: same number
+}
+
+TEST(ImageMetrics, VideoMeansAndBadInput) {
+  std::vector<cv::Mat> gt, pred;
+  for (int i = 0; i < 4; ++i) {
+    gt.push_back(MakeImage(32, 40, 3, 10, 100 + i));
+    pred.push_back(Perturb(gt.back(), 5 + 10 * i, 200 + i));
+  }
+  FrameMetricsOptions options;
+  options.luma = true;
+  const VideoScores s = CompareVideos(pred, gt, options, "clip");
+  ASSERT_EQ(s.frames.size(), 4u);
+  double mean = 0;
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_DOUBLE_EQ(s.frames[i].ssim_rgb, Ssim(pred[i], gt[i]));
+    mean += s.frames[i].psnr_rgb / 4;
+  }
+  EXPECT_NEAR(s.mean.psnr_rgb, mean, 1e-12);
+  EXPECT_GT(s.frames[0].psnr_rgb,
+            s.frames[3].psnr_rgb);  // more noise, lower PSNR
+  EXPECT_FALSE(std::isnan(s.mean.ssim_y));
+
+  auto expect_error = [&](const std::vector<cv::Mat>& p,
+                          const std::vector<cv::Mat>& g,
+                          const std::string& needle) {
+    try {
+      CompareVideos(p, g, {}, "clip");
+      ADD_FAILURE() << "no error for " << needle;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos)
+          << e.what();
+    }
+  };
+  expect_error({pred.begin(), pred.begin() + 3}, gt,
+               "frame counts differ (predicted 3, ground truth 4)");
+  expect_error({}, gt, "no frames");
+  std::vector<cv::Mat> small = pred;
+  small[2] = cv::Mat(30, 40, CV_8UC3, cv::Scalar(0));
+  expect_error(small, gt, "frame 2: image sizes differ (40x30 vs 40x32)");
+  EXPECT_THROW(Ssim(cv::Mat(8, 8, CV_8UC3), cv::Mat(8, 8, CV_8UC3)),
+               InputError);  // < 11x11
+}
+
+}  // namespace
+}  // namespace geodrive
