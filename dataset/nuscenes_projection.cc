@@ -83,21 +83,25 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
   return hull;
 }
 
-// Sutherland-Hodgman clip of a closed polygon against the half-plane where f(p)
-// >= 0 (f linear).
-template <typename F>
-std::vector<Eigen::Vector2d> ClipHalfPlane(
-    const std::vector<Eigen::Vector2d>& poly, F f) {
+// Sutherland-Hodgman clip of a closed polygon against the axis-aligned
+// half-plane sign * (p[axis] - bound) >= 0. Intersections are placed exactly on
+// the line.
+std::vector<Eigen::Vector2d> ClipAxis(const std::vector<Eigen::Vector2d>& poly,
+                                      int axis,
+                                      double bound,
+                                      double sign) {
   std::vector<Eigen::Vector2d> out;
   const size_t n = poly.size();
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector2d& a = poly[i];
     const Eigen::Vector2d& b = poly[(i + 1) % n];
-    const double fa = f(a), fb = f(b);
+    const double fa = sign * (a[axis] - bound), fb = sign * (b[axis] - bound);
     if (fa >= 0) out.push_back(a);
     if ((fa >= 0) != (fb >= 0)) {
       const double t = fa / (fa - fb);
-      out.push_back(a + t * (b - a));
+      Eigen::Vector2d p = a + t * (b - a);
+      p[axis] = bound;
+      out.push_back(p);
     }
   }
   return out;
@@ -196,13 +200,10 @@ std::optional<Box2d> PostProcessCoords(
     if (!p.allFinite()) return std::nullopt;
   }
   std::vector<Eigen::Vector2d> poly = ConvexHull(points);
-  const double W = width, H = height;
-  poly = ClipHalfPlane(poly, [](const Eigen::Vector2d& p) { return p.x(); });
-  poly =
-      ClipHalfPlane(poly, [W](const Eigen::Vector2d& p) { return W - p.x(); });
-  poly = ClipHalfPlane(poly, [](const Eigen::Vector2d& p) { return p.y(); });
-  poly =
-      ClipHalfPlane(poly, [H](const Eigen::Vector2d& p) { return H - p.y(); });
+  poly = ClipAxis(poly, 0, 0.0, 1.0);
+  poly = ClipAxis(poly, 0, width, -1.0);
+  poly = ClipAxis(poly, 1, 0.0, 1.0);
+  poly = ClipAxis(poly, 1, height, -1.0);
   if (poly.empty()) return std::nullopt;
   Box2d box{poly[0].x(), poly[0].y(), poly[0].x(), poly[0].y()};
   for (const auto& p : poly) {

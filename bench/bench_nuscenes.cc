@@ -1,0 +1,124 @@
+// nuScenes reader benchmarks: loading the 13 tables (SAX streaming into compact
+// structs) at v1.0-mini and v1.0-trainval scale, plus the projections. The
+// tables come from the synthetic generator in tables-only mode (`geodrive synth
+// --tables-only`, all six cameras, LIDAR_TOP and the five radars), cached under
+// $GEODRIVE_BENCH_DIR (default /tmp/geodrive_bench_nuscenes).
+//
+//   bench_nuscenes --benchmark_filter=Load/10      # v1.0-mini size (10 scenes)
+//   bench_nuscenes --benchmark_filter=Load/850     # v1.0-trainval size (850
+//   scenes, ~2.6 M rows)
+//
+// Counters: rows = sample_data rows, MB = JSON size, peak_rss_MB = the
+// process's peak RSS.
+
+#include <benchmark/benchmark.h>
+#include <sys/resource.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "dataset/clips.h"
+#include "dataset/nuscenes.h"
+#include "dataset/nuscenes_projection.h"
+#include "dataset/synthetic_dataset.h"
+
+namespace geodrive {
+namespace {
+
+std::string TablesFor(int scenes) {
+  const char* env = std::getenv("GEODRIVE_BENCH_DIR");
+  const std::string root =
+      std::string(env ? env : "/tmp/geodrive_bench_nuscenes") + "/scenes_" +
+      std::to_string(scenes);
+  if (!std::filesystem::exists(root + "/done")) {
+    SyntheticDatasetOptions o;
+    o.num_scenes = scenes;
+    o.tables_only = true;
+    o.radars = true;
+    o.cameras = {"CAM_FRONT", "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT",
+                 "CAM_BACK",  "CAM_BACK_LEFT",  "CAM_BACK_RIGHT"};
+    o.version = "v1.0-bench";
+    WriteSyntheticDataset(o, root);
+    std::ofstream(root + "/done") << "ok\n";
+  }
+  return root;
+}
+
+double PeakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+void BM_Load(benchmark::State& state) {
+  const std::string root = TablesFor(static_cast<int>(state.range(0)));
+  NuscenesOptions options;
+  options.dataroot = root;
+  options.version = "v1.0-bench";
+  size_t rows = 0, bytes = 0, anns = 0;
+  for (auto _ : state) {
+    Nuscenes nusc(options);
+    rows = nusc.sample_data().size();
+    anns = nusc.sample_annotations().size();
+    bytes = nusc.summary().json_bytes;
+    benchmark::DoNotOptimize(rows);
+  }
+  state.counters["sample_data"] = static_cast<double>(rows);
+  state.counters["annotations"] = static_cast<double>(anns);
+  state.counters["MB"] = bytes / 1e6;
+  state.counters["MB_per_s"] = benchmark::Counter(
+      bytes / 1e6, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["peak_rss_MB"] = PeakRssMb();
+}
+BENCHMARK(BM_Load)
+    ->Arg(10)
+    ->Arg(850)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
+
+void BM_SelectClips(benchmark::State& state) {
+  NuscenesOptions options;
+  options.dataroot = TablesFor(static_cast<int>(state.range(0)));
+  options.version = "v1.0-bench";
+  const Nuscenes nusc(options);
+  size_t clips = 0;
+  for (auto _ : state) clips = SelectClips(nusc, ClipOptions()).size();
+  state.counters["clips"] = static_cast<double>(clips);
+}
+BENCHMARK(BM_SelectClips)->Arg(10)->Unit(benchmark::kMillisecond);
+
+// One 34,688-point sweep (the real sweep's size) through the devkit's five
+// transforms.
+void BM_MapPointCloudToImage(benchmark::State& state) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> U(-50, 50);
+  std::vector<Eigen::Vector3f> points(34688);
+  for (auto& p : points) p = Eigen::Vector3f(U(rng), U(rng), U(rng) / 20);
+  const Rigid3d ego_from_lidar(
+      QuaternionFromWxyz(0.7071, 0, 0, -0.7071).normalized(),
+      Eigen::Vector3d(0.944, 0, 1.84));
+  const Rigid3d g(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0, 0.3)),
+                  Eigen::Vector3d(400, 1100, 0));
+  const Rigid3d ego_from_cam(
+      QuaternionFromWxyz(0.4998, -0.5030, 0.4998, -0.4974).normalized(),
+      Eigen::Vector3d(1.70, 0.016, 1.51));
+  Eigen::Matrix3d K;
+  K << 1266.4, 0, 816.3, 0, 1266.4, 491.5, 0, 0, 1;
+  size_t kept = 0;
+  for (auto _ : state) {
+    kept = MapPointCloudToImage(points, ego_from_lidar, g, g, ego_from_cam, K,
+                                1600, 900)
+               .size();
+  }
+  state.counters["kept"] = static_cast<double>(kept);
+  state.SetItemsProcessed(state.iterations() * points.size());
+}
+BENCHMARK(BM_MapPointCloudToImage)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace geodrive
+
+BENCHMARK_MAIN();
