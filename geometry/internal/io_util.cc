@@ -34,15 +34,18 @@ void ThrowOpenError(const std::string& path, int errno_value) {
 uint64_t FileSizeOrThrow(const std::string& path) {
   struct stat st;
   if (::stat(path.c_str(), &st) != 0) ThrowOpenError(path, errno);
-  if (S_ISDIR(st.st_mode)) ThrowInputError(path, "is a directory (expected a file)");
+  if (S_ISDIR(st.st_mode))
+    ThrowInputError(path, "is a directory (expected a file)");
   if (!S_ISREG(st.st_mode)) ThrowInputError(path, "not a regular file");
   return static_cast<uint64_t>(st.st_size);
 }
 
-std::vector<uint8_t> ReadFileBytes(const std::string& path, uint64_t max_bytes) {
+std::vector<uint8_t> ReadFileBytes(const std::string& path,
+                                   uint64_t max_bytes) {
   const uint64_t size = FileSizeOrThrow(path);
   if (size > max_bytes) {
-    ThrowInputError(path, "file of ", size, " bytes exceeds the limit of ", max_bytes, " bytes");
+    ThrowInputError(path, "file of ", size, " bytes exceeds the limit of ",
+                    max_bytes, " bytes");
   }
   FilePtr file(std::fopen(path.c_str(), "rb"));
   if (!file) ThrowOpenError(path, errno);
@@ -58,16 +61,20 @@ std::string ReadFileText(const std::string& path, uint64_t max_bytes) {
   return std::string(bytes.begin(), bytes.end());
 }
 
-std::string TemporaryPathFor(const std::string& path, const std::string& keep_suffix) {
+std::string TemporaryPathFor(const std::string& path,
+                             const std::string& keep_suffix) {
   static std::atomic<uint64_t> counter{0};
   const std::filesystem::path p(path);
-  const std::string name = "." + p.filename().string() + ".tmp" + std::to_string(::getpid()) +
-                           "_" + std::to_string(counter++) + keep_suffix;
+  const std::string name = "." + p.filename().string() + ".tmp" +
+                           std::to_string(::getpid()) + "_" +
+                           std::to_string(counter++) + keep_suffix;
   return (p.parent_path() / name).string();
 }
 
-void WriteViaTemporary(const std::string& path, const std::string& keep_suffix,
-                       const std::function<bool(const std::string&)>& write_to) {
+void WriteViaTemporary(
+    const std::string& path,
+    const std::string& keep_suffix,
+    const std::function<bool(const std::string&)>& write_to) {
   const std::string tmp = TemporaryPathFor(path, keep_suffix);
   bool ok = false;
   try {
@@ -87,7 +94,9 @@ void WriteViaTemporary(const std::string& path, const std::string& keep_suffix,
   }
 }
 
-void WriteFileAtomically(const std::string& path, const void* bytes, size_t size) {
+void WriteFileAtomically(const std::string& path,
+                         const void* bytes,
+                         size_t size) {
   const std::string tmp = TemporaryPathFor(path);
   FilePtr file(std::fopen(tmp.c_str(), "wb"));
   if (!file) ThrowInputError(path, "cannot write (", std::strerror(errno), ")");
@@ -97,7 +106,8 @@ void WriteFileAtomically(const std::string& path, const void* bytes, size_t size
   ok = std::fclose(file.release()) == 0 && ok;
   if (!ok) {
     std::remove(tmp.c_str());
-    ThrowInputError(path, "cannot write (", std::strerror(err ? err : EIO), ")");
+    ThrowInputError(path, "cannot write (", std::strerror(err ? err : EIO),
+                    ")");
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     const int rename_err = errno;
@@ -108,8 +118,9 @@ void WriteFileAtomically(const std::string& path, const void* bytes, size_t size
 
 std::string LowerFileName(const std::string& path) {
   std::string name = std::filesystem::path(path).filename().string();
-  std::transform(name.begin(), name.end(), name.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) {
+    return static_cast<char>(std::tolower(c));
+  });
   return name;
 }
 
