@@ -60,7 +60,7 @@ int RunInfo(const std::string& path, const std::string& format) {
     const NpyHeader h = ReadNpyHeader(path);
     const NpyArray a = ReadNpy(path);  // validates the data too
     std::cout << path << ": npy v" << h.major_version << "." << h.minor_version << ", dtype "
-              << (h.big_endian ? ">" : "") << NpyDtypeDescr(h.dtype) << ", shape "
+              << (h.big_endian ? ">" + NpyDtypeDescr(h.dtype).substr(1) : NpyDtypeDescr(h.dtype)) << ", shape "
               << ShapeString(h.shape) << ", " << (h.fortran_order ? "Fortran" : "C") << " order, "
               << a.NumElements() << " elements\n";
     return kExitOk;

@@ -7,6 +7,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libpcl-dev libflann-dev libceres-dev libgoogle-glog-dev libgflags-dev
   libopencv-dev nlohmann-json3-dev libcli11-dev
+  libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libopenmpi-dev openmpi-bin
   python3 python3-numpy python3-jsonschema python3-skimage python3-scipy

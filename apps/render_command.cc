@@ -1,0 +1,508 @@
+// `geodrive render`: conditioning videos by point splatting along a trajectory.
+//
+//   geodrive render (--cloud FILE.ply | --image IMG --depth DEPTH.npy
+//   --intrinsics K.txt |
+//                    --monst3r DIR) --trajectory FILE [--shift-left 3]
+//                    [--reverse]
+//                   [--mode zbuffer|soft] [--preset paper|geodrive-compat]
+//                   [--size 480x720]
+//                   [--fps 10] [--frames] --out DIR
+//
+// Writes DIR/render.mp4 (H.264 via OpenCV/FFmpeg, mp4v fallback),
+// DIR/contact_sheet.png, DIR/render.json (options, codec, per-frame coverage)
+// and with --frames the lossless PNG sequence DIR/frames/render_NNNN.png.
+// Dynamic editing: --boxes FILE [--edit-mode 3d|2d] [--remove ID]
+// [--insert ID:FILE] [--move ID:FILE] (render/dynamic_edit.h); the applied
+// edits and notes go to render.json "dynamic_edit".
+
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "apps/command.h"
+#include "geometry/image_io.h"
+#include "geometry/monst3r.h"
+#include "geometry/npy.h"
+#include "geometry/point_cloud_io.h"
+#include "geometry/status.h"
+#include "geometry/trajectory_edit.h"
+#include "geometry/trajectory_json.h"
+#include "render/dynamic_edit.h"
+#include "render/presets.h"
+#include "render/renderer.h"
+#include "render/video.h"
+
+namespace geodrive {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+struct RenderArgs {
+  std::string cloud, image, depth, intrinsics, monst3r, trajectory, out;
+  std::string trajectory_format = "auto";
+  std::string mode, preset = "paper", size;
+  double radius = -1;  // < 0: preset default
+  int points_per_pixel = 0;
+  double near = -1, far = -1;
+  bool hole_fill = false;
+  TrajectoryEditOptions edits;
+  bool reverse = false;
+  double fps = 10;
+  bool frames = false;
+  bool no_video = false;
+  std::string real_frame0;
+  int threads = 0;
+  EditCliArgs dynamic;  // --boxes, --edit-mode, --remove, --insert, --move
+};
+
+// "480x720" = H x W.
+void ParseSize(const std::string& text, int* height, int* width) {
+  const size_t x = text.find('x');
+  GEODRIVE_CHECK_INPUT(x != std::string::npos, "--size '", text,
+                       "': expected HxW, e.g. 480x720");
+  try {
+    size_t p1 = 0, p2 = 0;
+    const long h = std::stol(text.substr(0, x), &p1);
+    const long w = std::stol(text.substr(x + 1), &p2);
+    GEODRIVE_CHECK_INPUT(p1 == x && p2 == text.size() - x - 1, "--size '", text,
+                         "': expected HxW, e.g. 480x720");
+    GEODRIVE_CHECK_INPUT(h >= 1 && w >= 1 && h <= 16384 && w <= 16384,
+                         "--size '", text,
+                         "': height and width must be in 1..16384");
+    *height = static_cast<int>(h);
+    *width = static_cast<int>(w);
+  } catch (const std::logic_error&) {
+    ThrowInputError("--size '" + text + "'", "expected HxW, e.g. 480x720");
+  }
+}
+
+// A 3x3 K from a text file: 9 numbers (MonST3R pred_intrinsics.txt line, or 3
+// rows of 3); with several frames (9*N numbers) the first K is used.
+PinholeCamera ReadIntrinsicsFile(const std::string& path,
+                                 int width,
+                                 int height) {
+  std::ifstream in(path);
+  if (!in) ThrowInputError(path, "cannot open intrinsics file");
+  std::vector<double> values;
+  std::string token;
+  while (in >> token) {
+    try {
+      size_t used = 0;
+      values.push_back(std::stod(token, &used));
+      if (used != token.size()) throw std::invalid_argument(token);
+    } catch (const std::logic_error&) {
+      ThrowInputError(path, "'", token, "' is not a number");
+    }
+  }
+  if (values.size() < 9 || values.size() % 9 != 0) {
+    ThrowInputError(path, values.size(),
+                    " numbers (expected a 3x3 K: 9 per frame)");
+  }
+  Eigen::Matrix3d K;
+  for (int i = 0; i < 9; ++i) K(i / 3, i % 3) = values[i];
+  GEODRIVE_CHECK_INPUT(K.allFinite(), path, ": non-finite value in K");
+  GEODRIVE_CHECK_INPUT(K(1, 0) == 0 && K(2, 0) == 0 && K(2, 1) == 0 &&
+                           K(2, 2) == 1 && K(0, 1) == 0,
+                       path, ": not a pinhole K [[fx,0,cx],[0,fy,cy],[0,0,1]]");
+  const PinholeCamera camera = PinholeCamera::FromK(K, width, height);
+  camera.Check(path);
+  return camera;
+}
+
+// Unprojects every pixel with finite positive depth (integer-index convention,
+// as MonST3R does) into the camera frame (or `world_from_cam`), coloured by
+// `rgb`.
+PointCloud CloudFromDepth(const cv::Mat& depth,
+                          const cv::Mat& rgb,
+                          const PinholeCamera& camera,
+                          const Rigid3d& world_from_cam) {
+  PointCloud cloud;
+  cloud.Reserve(depth.total());
+  for (int j = 0; j < depth.rows; ++j) {
+    for (int i = 0; i < depth.cols; ++i) {
+      const float z = depth.at<float>(j, i);
+      if (!(z > 0) || !std::isfinite(z)) continue;
+      const Eigen::Vector3d p =
+          world_from_cam * camera.Unproject(Eigen::Vector2d(i, j), z,
+                                            PixelConvention::kIntegerIndex);
+      cloud.positions.push_back(p.cast<float>());
+      const cv::Vec3b c = rgb.at<cv::Vec3b>(j, i);
+      cloud.colors.push_back(Color3u8(c[0], c[1], c[2]));
+    }
+  }
+  return cloud;
+}
+
+cv::Mat ReadDepthNpy(const std::string& path) {
+  const NpyArray a = ReadNpyAsFloat32(path);
+  std::vector<int64_t> shape = a.shape;
+  while (shape.size() > 2 && shape.front() == 1) shape.erase(shape.begin());
+  while (shape.size() > 2 && shape.back() == 1) shape.pop_back();
+  GEODRIVE_CHECK_INPUT(shape.size() == 2 && shape[0] > 0 && shape[1] > 0 &&
+                           shape[0] <= 16384 && shape[1] <= 16384,
+                       path, ": expected a (H, W) depth array");
+  cv::Mat depth(static_cast<int>(shape[0]), static_cast<int>(shape[1]), CV_32F);
+  std::memcpy(depth.data, a.Data<float>(), depth.total() * sizeof(float));
+  return depth;
+}
+
+std::string Fixed(double v, int digits) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(digits) << v;
+  return os.str();
+}
+
+int RunRender(RenderArgs a) {
+  const int sources = !a.cloud.empty() + !a.image.empty() + !a.monst3r.empty();
+  GEODRIVE_CHECK_INPUT(
+      sources == 1,
+      "give exactly one input: --cloud, --image (with --depth, --intrinsics) "
+      "or --monst3r");
+  if (!a.image.empty()) {
+    GEODRIVE_CHECK_INPUT(
+        !a.depth.empty() && !a.intrinsics.empty(),
+        "--image needs --depth DEPTH.npy and --intrinsics K.txt");
+  }
+  GEODRIVE_CHECK_INPUT(
+      !a.trajectory.empty() || !a.monst3r.empty(),
+      "--trajectory is required (except with --monst3r, which defaults to "
+      "its pred_traj.txt)");
+  const RenderPreset preset = ParseRenderPreset(a.preset);
+  RenderOptions options = PresetRenderOptions(preset);
+  if (!a.mode.empty()) options.mode = ParseRenderMode(a.mode);
+  if (!a.size.empty()) ParseSize(a.size, &options.height, &options.width);
+  if (a.radius >= 0) {
+    if (options.mode == RenderMode::kSoft) {
+      options.radius_ndc = a.radius;
+    } else {
+      options.radius_px = a.radius;
+    }
+  }
+  if (a.points_per_pixel > 0) options.points_per_pixel = a.points_per_pixel;
+  if (a.near >= 0) options.near = a.near;
+  if (a.far >= 0) options.far = a.far;
+  options.hole_fill = a.hole_fill;
+  options.num_threads = a.threads;
+  if (options.mode == RenderMode::kSoft) options.output_float_rgb = true;
+  options.Check();
+  a.edits.forward_then_back = a.reverse;
+  a.edits.Check();
+
+  // ---- Input cloud, its frame-0 camera and the trajectory in the cloud's
+  // world ----
+  PointCloud cloud;
+  PinholeCamera camera;
+  bool have_camera = false;
+  cv::Mat real_frame0;
+  std::vector<cv::Mat> ground_truth;
+  Trajectory trajectory;
+  std::string units = "unknown";
+  std::string input_desc;
+  TrajectoryFileInfo traj_info;
+  if (!a.trajectory.empty()) {
+    trajectory = ReadTrajectoryAny(
+        a.trajectory, ParseTrajectoryFormat(a.trajectory_format), &traj_info);
+    trajectory.Check(a.trajectory);
+    units = traj_info.units;
+    if (traj_info.camera) {
+      camera = *traj_info.camera;
+      have_camera = true;
+    }
+  }
+  if (!a.cloud.empty()) {
+    cloud = ReadPointCloud(a.cloud);
+    input_desc = "cloud " + a.cloud;
+    // The trajectory is in the cloud's world frame (absolute poses).
+    // --intrinsics with --cloud: K for an image of the render size.
+    if (!a.intrinsics.empty()) {
+      camera = ReadIntrinsicsFile(a.intrinsics, options.width, options.height);
+      have_camera = true;
+    }
+  } else if (!a.image.empty()) {
+    real_frame0 = ReadImageRgb(a.image);
+    const cv::Mat depth = ReadDepthNpy(a.depth);
+    GEODRIVE_CHECK_INPUT(depth.size() == real_frame0.size(), a.depth,
+                         ": depth is ", depth.cols, "x", depth.rows, " but ",
+                         a.image, " is ", real_frame0.cols, "x",
+                         real_frame0.rows);
+    camera = ReadIntrinsicsFile(a.intrinsics, depth.cols, depth.rows);
+    have_camera = true;
+    cloud = CloudFromDepth(depth, real_frame0, camera, Rigid3d());
+    input_desc = "image " + a.image + " + depth " + a.depth;
+    // The cloud is in the image's camera frame: poses relative to the
+    // trajectory's first frame.
+    trajectory = trajectory.RelativeToFirst();
+  } else {
+    const Monst3rFolder folder = Monst3rFolder::Open(a.monst3r);
+    Monst3rLoadOptions lo;
+    lo.confidence = lo.dynamic_masks = lo.enlarged_dynamic_masks = false;
+    lo.reject_all_invalid_confidence = false;
+    GEODRIVE_CHECK_INPUT(folder.has_rgb(), a.monst3r,
+                         ": frame_0000.png is missing (needed for "
+                         "colours)");
+    const Monst3rFrame f0 = folder.LoadFrame(0, lo);
+    real_frame0 = f0.rgb;
+    camera = f0.camera;
+    have_camera = true;
+    // The released pipeline: frame-0 pointmap, no confidence threshold.
+    cloud = CloudFromDepth(f0.depth, f0.rgb, f0.camera, f0.world_from_cam);
+    input_desc = "MonST3R " + a.monst3r + " frame 0";
+    units = "monst3r";
+    if (a.trajectory.empty()) {
+      trajectory = folder.trajectory();
+      for (int i = 0; i < folder.num_frames(); ++i) {
+        ground_truth.push_back(ReadImageRgb(folder.RgbPath(i)));
+      }
+    } else {
+      // A user trajectory is taken relative to its first frame, starting at
+      // MonST3R frame 0.
+      const Trajectory rel = trajectory.RelativeToFirst();
+      trajectory = rel;
+      for (auto& pose : trajectory.world_from_cam)
+        pose = f0.world_from_cam * pose;
+    }
+  }
+  GEODRIVE_CHECK_INPUT(!cloud.empty(), input_desc,
+                       ": no points (empty cloud or no valid depth)");
+  GEODRIVE_CHECK_INPUT(
+      have_camera, a.trajectory,
+      ": no camera intrinsics: with --cloud the "
+      "trajectory JSON must hold a \"camera\" (or use --image/--monst3r)");
+
+  const Trajectory edited = ApplyTrajectoryEdits(trajectory, a.edits);
+  if (edited.size() != ground_truth.size() || a.edits.Describe() != "none")
+    ground_truth.clear();
+  std::vector<Rigid3d> cam_from_world;
+  for (const auto& pose : edited.world_from_cam)
+    cam_from_world.push_back(pose.Inverse());
+
+  // ---- Render ----
+  if (!a.real_frame0.empty()) real_frame0 = ReadImageRgb(a.real_frame0);
+  GEODRIVE_CHECK_INPUT(!a.dynamic.boxes_path.empty() ||
+                           (a.dynamic.remove.empty() &&
+                            a.dynamic.insert.empty() && a.dynamic.move.empty()),
+                       "--remove/--insert/--move need --boxes FILE");
+  json dynamic_edit;  // dynamic editing (render/dynamic_edit.h), with --boxes
+  const RenderResult result = [&] {
+    if (a.dynamic.boxes_path.empty())
+      return RenderFrames(cloud, {camera}, cam_from_world, options);
+    DynamicEditResult edited = ApplyEditsAndRender(
+        a.dynamic, cloud, {camera}, cam_from_world, options, real_frame0);
+    dynamic_edit = json::parse(edited.summary.ToJson());
+    std::cout << edited.summary.BriefReport() << "\n";
+    return std::move(edited).ToRenderResult();
+  }();
+  // Frame 0 is replaced by the real image only in the compat preset (the
+  // released pipeline).
+  const cv::Mat frame0_replacement =
+      preset == RenderPreset::kGeodriveCompat ? real_frame0 : cv::Mat();
+  const std::vector<cv::Mat> frames =
+      FinalFrames(result, preset, frame0_replacement);
+
+  // ---- Outputs ----
+  std::error_code ec;
+  fs::create_directories(a.out, ec);
+  GEODRIVE_CHECK_INPUT(!ec, a.out, ": cannot create output directory (",
+                       ec.message(), ")");
+  json report;
+  VideoWriteResult video;
+  if (!a.no_video) {
+    VideoWriteOptions vo;
+    vo.fps = a.fps;
+    video = WriteVideo((fs::path(a.out) / "render.mp4").string(), frames, vo);
+    report["video"] = {
+        {"path", "render.mp4"},         {"fourcc", video.fourcc},
+        {"fell_back", video.fell_back}, {"fps", a.fps},
+        {"width", video.width},         {"height", video.height}};
+  }
+  if (a.frames) {
+    WritePngSequence((fs::path(a.out) / "frames").string(), "render_", frames);
+    report["frames_dir"] = "frames";
+  }
+  std::vector<cv::Mat> gt_sheet;
+  for (size_t i = 0; i < ground_truth.size(); ++i) {
+    cv::Mat g;
+    cv::resize(ground_truth[i], g, frames[i].size(), 0, 0, cv::INTER_AREA);
+    gt_sheet.push_back(g);
+  }
+  WriteImageRgb((fs::path(a.out) / "contact_sheet.png").string(),
+                MakeContactSheet(frames, gt_sheet));
+
+  report["input"] = input_desc;
+  report["trajectory"] =
+      a.trajectory.empty() ? a.monst3r + "/pred_traj.txt" : a.trajectory;
+  report["units"] = units;
+  report["edits"] = a.edits.Describe();
+  if (!dynamic_edit.is_null()) report["dynamic_edit"] = dynamic_edit;
+  report["preset"] = ToString(preset);
+  report["options"] = {
+      {"mode", ToString(options.mode)},
+      {"height", options.height},
+      {"width", options.width},
+      {"near", options.near},
+      {"far", std::isfinite(options.far) ? json(options.far) : json("inf")},
+      {"radius_px", options.radius_px},
+      {"radius_ndc", options.radius_ndc},
+      {"points_per_pixel", options.points_per_pixel},
+      {"pixel_convention",
+       options.pixel_convention == PixelConvention::kPixelCenter
+           ? "pixel-center"
+           : "integer-index"},
+      {"hole_fill", options.hole_fill},
+      {"upsample", PresetUpsampleFactor(preset)},
+      {"frame0_replaced", !frame0_replacement.empty()}};
+  report["camera"] = {{"fx", camera.fx},       {"fy", camera.fy},
+                      {"cx", camera.cx},       {"cy", camera.cy},
+                      {"width", camera.width}, {"height", camera.height}};
+  report["num_points"] = cloud.size();
+  report["output_size"] = {{"width", frames[0].cols},
+                           {"height", frames[0].rows}};
+  json per_frame = json::array();
+  for (size_t f = 0; f < result.frames.size(); ++f) {
+    const RenderedFrame& fr = result.frames[f];
+    per_frame.push_back({{"frame", f},
+                         {"t", edited.timestamps[f]},
+                         {"coverage", fr.coverage()},
+                         {"valid_pixels", fr.num_valid},
+                         {"filled_pixels", fr.num_filled},
+                         {"points_in_view", fr.num_projected}});
+  }
+  report["frames"] = per_frame;
+  report["summary"] = {{"mean_coverage", result.summary.mean_coverage},
+                       {"min_coverage", result.summary.min_coverage},
+                       {"max_coverage", result.summary.max_coverage},
+                       {"all_invalid_frames", result.summary.empty_frames},
+                       {"seconds", result.summary.seconds}};
+  {
+    const std::string path = (fs::path(a.out) / "render.json").string();
+    std::ofstream out(path);
+    GEODRIVE_CHECK_INPUT(static_cast<bool>(out), path, ": cannot write");
+    out << report.dump(2) << "\n";
+  }
+
+  std::cout << a.out << ": " << result.frames.size() << " frames "
+            << frames[0].cols << "x" << frames[0].rows << " ("
+            << ToString(options.mode) << ", preset " << ToString(preset)
+            << ", edits: " << a.edits.Describe() << ") from " << cloud.size()
+            << " points; "
+            << "coverage mean " << Fixed(result.summary.mean_coverage, 3)
+            << " min " << Fixed(result.summary.min_coverage, 3) << "; "
+            << (a.no_video ? std::string("no video")
+                           : "render.mp4 (" + video.fourcc +
+                                 (video.fell_back ? ", fallback" : "") + ")")
+            << "\n";
+  if (!result.summary.empty_frames.empty()) {
+    std::cerr
+        << "warning: " << result.summary.empty_frames.size()
+        << " frame(s) have no visible point (all-invalid): see render.json\n";
+  }
+  return kExitOk;
+}
+
+CommandRunner SetupRender(CLI::App& app) {
+  auto a = std::make_shared<RenderArgs>();
+  app.add_option(
+      "--cloud", a->cloud,
+      "Input cloud (.ply/.pcd) in the trajectory's world frame; intrinsics "
+      "from the "
+      "trajectory JSON's camera or --intrinsics (K for the render size)");
+  app.add_option("--image", a->image,
+                 "Frame-0 image (RGB) whose depth map is --depth");
+  app.add_option("--depth", a->depth,
+                 "Frame-0 z-depth .npy (H, W), same size as --image");
+  app.add_option("--intrinsics", a->intrinsics,
+                 "K of --image: 9 numbers (pred_intrinsics.txt line or 3 "
+                 "rows), integer-index "
+                 "pixels");
+  app.add_option("--monst3r", a->monst3r,
+                 "MonST3R output folder: renders frame 0's pointmap (no "
+                 "confidence threshold, as "
+                 "released) along pred_traj.txt or --trajectory");
+  app.add_option(
+      "--trajectory", a->trajectory,
+      "Trajectory: .json (geodrive), pred_traj.txt (MonST3R, w first) or TUM "
+      ".txt (w "
+      "last). With --image/--monst3r it is taken relative to its first frame");
+  app.add_option("--trajectory-format", a->trajectory_format,
+                 "auto, json, tum or monst3r")
+      ->check(CLI::IsMember({"auto", "json", "tum", "monst3r"}))
+      ->capture_default_str();
+  app.add_option(
+      "--shift-left", a->edits.shift_left,
+      "Shift the trajectory left by D (first camera's axes, trajectory units)");
+  app.add_option("--shift-right", a->edits.shift_right, "Shift right by D");
+  app.add_option("--shift-up", a->edits.shift_up, "Shift up by D");
+  app.add_option("--yaw", a->edits.yaw_deg,
+                 "Yaw offset in degrees (positive = turn left)");
+  app.add_option("--speed", a->edits.speed_scale, "Speed scale (> 0)")
+      ->capture_default_str();
+  app.add_option(
+      "--num-frames", a->edits.resample_frames,
+      "Resample the trajectory to N frames uniformly in time (0 = keep)");
+  app.add_flag(
+      "--reverse", a->reverse,
+      "Drive forward to the middle frame, then back (same frame count)");
+  app.add_option("--mode", a->mode,
+                 "zbuffer (paper) or soft (PyTorch3D); default: the preset's")
+      ->check(CLI::IsMember({"zbuffer", "soft"}));
+  app.add_option("--preset", a->preset,
+                 "paper (zbuffer 480x720, 0.1 < z < 100) or geodrive-compat "
+                 "(soft 288x512, r "
+                 "0.01 NDC, K 10, x2 bilinear upsample, frame 0 = real image)")
+      ->check(CLI::IsMember({"paper", "geodrive-compat"}))
+      ->capture_default_str();
+  app.add_option("--size", a->size,
+                 "Render size HxW, e.g. 480x720 (default: the preset's)");
+  app.add_option("--radius", a->radius,
+                 "Splat radius: pixels in zbuffer mode (0 = one pixel), NDC "
+                 "units in soft mode");
+  app.add_option("--points-per-pixel", a->points_per_pixel,
+                 "Soft mode K (1..32)");
+  app.add_option("--near", a->near, "Near depth (trajectory units)");
+  app.add_option("--far", a->far, "Far depth (trajectory units)");
+  app.add_flag("--hole-fill", a->hole_fill,
+               "zbuffer: fill small holes from the nearest valid neighbour "
+               "(off by default)");
+  app.add_option(
+      "--real-frame0", a->real_frame0,
+      "Real frame-0 image for geodrive-compat (default: --image or MonST3R "
+      "frame_0000.png)");
+  app.add_option("--fps", a->fps, "Video frame rate")->capture_default_str();
+  app.add_flag("--frames", a->frames,
+               "Also write the lossless PNG sequence frames/render_NNNN.png");
+  app.add_flag("--no-video", a->no_video, "Do not write render.mp4");
+  app.add_option("--threads", a->threads, "Threads (0 = all)");
+  app.add_option(
+      "--boxes", a->dynamic.boxes_path,
+      "Dynamic editing: box sequences (data_schema/boxes.schema.json)");
+  app.add_option("--edit-mode", a->dynamic.edit_mode,
+                 "Dynamic editing mode: 3d (segment + move in 3D) or 2d "
+                 "(upstream crop-and-paste)")
+      ->capture_default_str();
+  app.add_option("--remove", a->dynamic.remove,
+                 "Remove instance ID (repeatable; needs --boxes)");
+  app.add_option("--insert", a->dynamic.insert,
+                 "ID:FILE: insert a copy of ID along FILE's box sequence "
+                 "(repeatable)");
+  app.add_option("--move", a->dynamic.move,
+                 "ID:FILE: ID follows FILE's box sequence (repeatable)");
+  app.add_option("--out", a->out, "Output directory")->required();
+  return [a] { return RunRender(*a); };
+}
+
+}  // namespace
+
+GEODRIVE_REGISTER_COMMAND(
+    render,
+    "render",
+    "Render a conditioning video: point splatting along a trajectory",
+    SetupRender);
+
+}  // namespace geodrive

@@ -1,0 +1,82 @@
+// Renderer benchmark: 25 frames at 480x720 from a 345,600-point cloud (one
+// full-resolution pointmap of a ray-cast street-like scene), along a forward
+// trajectory with a small yaw.
+//
+//   OMP_NUM_THREADS=1 build/bench/bench_render --benchmark_filter=threads:1
+//
+// Figures and targets: docs/PERFORMANCE.md, section "Renderer".
+
+#include <benchmark/benchmark.h>
+
+#include "render/renderer.h"
+#include "tests/render/render_test_util.h"
+
+namespace geodrive {
+namespace {
+
+struct Scene {
+  PinholeCamera camera{560, 560, 359.5, 239.5, 720, 480};
+  PointCloud cloud;
+  std::vector<Rigid3d> cam_from_world;
+};
+
+const Scene& GetScene() {
+  static const Scene* scene = [] {
+    auto* s = new Scene;
+    const test::RayCastScene rc = test::RayCast(s->camera, Rigid3d());
+    // Pixels without depth (sky) still get a point far away so the cloud has
+    // exactly W*H points.
+    cv::Mat depth = rc.depth.clone();
+    depth.setTo(90.0f, depth <= 0);
+    s->cloud = test::Unproject(s->camera, Rigid3d(), depth, rc.rgb);
+    for (int f = 0; f < 25; ++f) {
+      const Rigid3d world_from_cam(
+          QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.004 * f, 0)),
+          Eigen::Vector3d(0.02 * f, 0, 0.4 * f));
+      s->cam_from_world.push_back(world_from_cam.Inverse());
+    }
+    return s;
+  }();
+  return *scene;
+}
+
+// Args: mode (0 zbuffer r=0, 1 zbuffer r=1.5 px, 2 soft K=10 r=0.01 NDC),
+// threads.
+void BM_Render25Frames(benchmark::State& state) {
+  const Scene& scene = GetScene();
+  RenderOptions options;
+  options.width = 720;
+  options.height = 480;
+  const int mode = static_cast<int>(state.range(0));
+  options.mode = mode == 2 ? RenderMode::kSoft : RenderMode::kZBuffer;
+  options.radius_px = mode == 1 ? 1.5 : 0.0;
+  options.radius_ndc = 0.01;
+  options.points_per_pixel = 10;
+  options.num_threads = static_cast<int>(state.range(1));
+  // Output buffers are reused across iterations (as a clip-rendering loop
+  // would), so the timing measures rendering, not first-touch page faults of
+  // fresh output images.
+  RenderResult r;
+  for (auto _ : state) {
+    RenderFramesInto(scene.cloud, {scene.camera}, scene.cam_from_world, options,
+                     &r);
+    benchmark::DoNotOptimize(r.frames.data());
+  }
+  const double coverage = r.summary.mean_coverage;
+  state.counters["points"] = static_cast<double>(scene.cloud.size());
+  state.counters["mean_coverage"] = coverage;
+  state.SetLabel(mode == 0   ? "zbuffer r=0"
+                 : mode == 1 ? "zbuffer r=1.5px"
+                             : "soft K=10 r=0.01");
+}
+BENCHMARK(BM_Render25Frames)
+    ->ArgNames({"mode", "threads"})
+    ->ArgsProduct({{0, 1, 2}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(2.0);
+
+}  // namespace
+}  // namespace geodrive
+
+BENCHMARK_MAIN();

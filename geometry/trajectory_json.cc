@@ -1,0 +1,232 @@
+#include "geometry/trajectory_json.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+
+#include "geometry/status.h"
+#include "geometry/trajectory_io.h"
+
+namespace geodrive {
+namespace {
+
+using json = nlohmann::json;
+
+double Number(const std::string& path,
+              const json& j,
+              const std::string& where) {
+  if (!j.is_number()) ThrowInputError(path, where, " is not a number");
+  const double v = j.get<double>();
+  if (!std::isfinite(v)) ThrowInputError(path, where, " is not finite");
+  return v;
+}
+
+template <int N>
+Eigen::Matrix<double, N, 1> Vector(const std::string& path,
+                                   const json& j,
+                                   const std::string& where) {
+  if (!j.is_array() || j.size() != N)
+    ThrowInputError(path, where, " must be an array of ", N, " numbers");
+  Eigen::Matrix<double, N, 1> v;
+  for (int i = 0; i < N; ++i)
+    v[i] = Number(path, j[i], where + "[" + std::to_string(i) + "]");
+  return v;
+}
+
+bool EndsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+}  // namespace
+
+Trajectory ReadTrajectoryJson(const std::string& path,
+                              TrajectoryFileInfo* info) {
+  std::ifstream in(path);
+  if (!in) ThrowInputError(path, "cannot open trajectory file");
+  json root;
+  try {
+    root = json::parse(in);
+  } catch (const json::exception& e) {
+    ThrowInputError(path, "malformed JSON (", e.what(), ")");
+  }
+  if (!root.is_object())
+    ThrowInputError(path, "top level must be a JSON object");
+  if (root.value("format", "") != "geodrive-trajectory") {
+    ThrowInputError(path, "\"format\" must be \"geodrive-trajectory\"");
+  }
+  if (!root.contains("version") || !root["version"].is_number_integer() ||
+      root["version"] != 1) {
+    ThrowInputError(path, "unsupported \"version\" (expected 1)");
+  }
+  if (root.contains("convention") && root["convention"] != "world_from_cam") {
+    ThrowInputError(path, "\"convention\" must be \"world_from_cam\"");
+  }
+  TrajectoryFileInfo file_info;
+  if (root.contains("units")) {
+    if (!root["units"].is_string())
+      ThrowInputError(path, "\"units\" must be a string");
+    file_info.units = root["units"].get<std::string>();
+  }
+  if (root.contains("camera")) {
+    const json& c = root["camera"];
+    if (!c.is_object()) ThrowInputError(path, "\"camera\" must be an object");
+    for (const char* key : {"fx", "fy", "cx", "cy", "width", "height"}) {
+      if (!c.contains(key))
+        ThrowInputError(path, "camera: missing \"", key, "\"");
+    }
+    if (c.contains("pixel_convention") &&
+        c["pixel_convention"] != "integer-index") {
+      ThrowInputError(
+          path, "camera: only pixel_convention \"integer-index\" is supported");
+    }
+    if (!c["width"].is_number_integer() || !c["height"].is_number_integer()) {
+      ThrowInputError(path, "camera: width and height must be integers");
+    }
+    PinholeCamera cam(
+        Number(path, c["fx"], "camera.fx"), Number(path, c["fy"], "camera.fy"),
+        Number(path, c["cx"], "camera.cx"), Number(path, c["cy"], "camera.cy"),
+        c["width"].get<int>(), c["height"].get<int>());
+    cam.Check(path + ": camera");
+    file_info.camera = cam;
+  }
+  if (!root.contains("frames") || !root["frames"].is_array()) {
+    ThrowInputError(path, "\"frames\" must be an array");
+  }
+  const json& frames = root["frames"];
+  if (frames.empty()) ThrowInputError(path, "\"frames\" is empty");
+  Trajectory trajectory;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const std::string where = "frames[" + std::to_string(i) + "]";
+    const json& f = frames[i];
+    if (!f.is_object()) ThrowInputError(path, where, " must be an object");
+    const double t = f.contains("t") ? Number(path, f["t"], where + ".t")
+                                     : static_cast<double>(i);
+    if (!f.contains("position"))
+      ThrowInputError(path, where, ": missing \"position\"");
+    const Eigen::Vector3d position =
+        Vector<3>(path, f["position"], where + ".position");
+    Eigen::Quaterniond q;
+    const bool has_q = f.contains("quaternion_wxyz"),
+               has_r = f.contains("rotation");
+    if (has_q == has_r) {
+      ThrowInputError(
+          path, where,
+          ": give exactly one of \"quaternion_wxyz\" or \"rotation\"");
+    }
+    if (has_q) {
+      const Eigen::Vector4d wxyz =
+          Vector<4>(path, f["quaternion_wxyz"], where + ".quaternion_wxyz");
+      if (std::abs(wxyz.norm() - 1.0) > 1e-3) {
+        ThrowInputError(path, where, ": quaternion is not unit norm (",
+                        wxyz.norm(), "), the rotation is not orthonormal");
+      }
+      q = QuaternionFromWxyz(wxyz.normalized());
+    } else {
+      const json& r = f["rotation"];
+      if (!r.is_array() || r.size() != 3)
+        ThrowInputError(path, where, ".rotation must be 3 rows");
+      Eigen::Matrix3d m;
+      for (int row = 0; row < 3; ++row) {
+        m.row(row) = Vector<3>(
+            path, r[row], where + ".rotation[" + std::to_string(row) + "]");
+      }
+      const double err = (m.transpose() * m - Eigen::Matrix3d::Identity())
+                             .cwiseAbs()
+                             .maxCoeff();
+      if (err > 1e-4 || m.determinant() < 0) {
+        ThrowInputError(
+            path, where,
+            ": rotation is not orthonormal with det +1 (|RᵀR - I| = ", err,
+            ", det ", m.determinant(), ")");
+      }
+      q = Eigen::Quaterniond(m).normalized();
+    }
+    if (i > 0 && !(t > trajectory.timestamps.back())) {
+      ThrowInputError(path, where, ": timestamps must be strictly increasing");
+    }
+    trajectory.Add(t, Rigid3d(q, position));
+  }
+  if (info) *info = file_info;
+  return trajectory;
+}
+
+void WriteTrajectoryJson(const std::string& path,
+                         const Trajectory& trajectory,
+                         const TrajectoryFileInfo& info) {
+  trajectory.Check(path);
+  json root;
+  root["format"] = "geodrive-trajectory";
+  root["version"] = 1;
+  root["convention"] = "world_from_cam";
+  root["units"] = info.units;
+  if (info.camera) {
+    const PinholeCamera& c = *info.camera;
+    root["camera"] = {{"fx", c.fx},
+                      {"fy", c.fy},
+                      {"cx", c.cx},
+                      {"cy", c.cy},
+                      {"width", c.width},
+                      {"height", c.height},
+                      {"pixel_convention", "integer-index"}};
+  }
+  json frames = json::array();
+  for (size_t i = 0; i < trajectory.size(); ++i) {
+    const Rigid3d& p = trajectory.world_from_cam[i];
+    const Eigen::Vector4d q = QuaternionToWxyz(p.rotation.normalized());
+    frames.push_back(
+        {{"t", trajectory.timestamps[i]},
+         {"position",
+          {p.translation.x(), p.translation.y(), p.translation.z()}},
+         {"quaternion_wxyz", {q[0], q[1], q[2], q[3]}}});
+  }
+  root["frames"] = frames;
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) ThrowInputError(path, "cannot write trajectory file");
+    out << std::setprecision(17) << root.dump(2) << "\n";
+    if (!out) ThrowInputError(path, "write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec)
+    ThrowInputError(path, "cannot rename temporary file (", ec.message(), ")");
+}
+
+TrajectoryFormat ParseTrajectoryFormat(const std::string& text) {
+  if (text == "auto") return TrajectoryFormat::kAuto;
+  if (text == "json") return TrajectoryFormat::kJson;
+  if (text == "tum") return TrajectoryFormat::kTum;
+  if (text == "monst3r") return TrajectoryFormat::kMonst3r;
+  ThrowInputError("trajectory format", "'", text,
+                  "' is not one of auto, json, tum, monst3r");
+}
+
+Trajectory ReadTrajectoryAny(const std::string& path,
+                             TrajectoryFormat format,
+                             TrajectoryFileInfo* info) {
+  if (format == TrajectoryFormat::kAuto) {
+    const std::string name = std::filesystem::path(path).filename().string();
+    if (EndsWith(name, ".json"))
+      format = TrajectoryFormat::kJson;
+    else if (name == "pred_traj.txt")
+      format = TrajectoryFormat::kMonst3r;
+    else
+      format = TrajectoryFormat::kTum;
+  }
+  if (format == TrajectoryFormat::kJson) return ReadTrajectoryJson(path, info);
+  if (info) {
+    *info = TrajectoryFileInfo();
+    info->units = format == TrajectoryFormat::kMonst3r ? "monst3r" : "unknown";
+  }
+  Trajectory t = format == TrajectoryFormat::kMonst3r
+                     ? ReadMonst3rTrajectory(path)
+                     : ReadTumTrajectory(path);
+  GEODRIVE_CHECK_INPUT(!t.empty(), path, ": trajectory has no poses");
+  return t;
+}
+
+}  // namespace geodrive

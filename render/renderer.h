@@ -1,0 +1,160 @@
+#pragma once
+// Point splatting renderer: a coloured cloud seen through a pinhole camera per
+// frame.
+//
+// Two modes:
+//  - kZBuffer (the paper, §3.2): keep near < z < far, splat each point as a
+//  disk of
+//    `radius_px` pixels (0 = the single pixel that contains the projection),
+//    nearest depth wins. Ties in depth are broken by the smaller point index,
+//    so the output does not depend on the processing order.
+//  - kSoft (the released model): PyTorch3D `PointsRasterizer` +
+//  `AlphaCompositor`. The radius is
+//    in NDC units where the SHORT image side spans 2 (one pixel = 2 / min(W, H)
+//    NDC on both axes; the long side spans 2 * max/min). A point hits a pixel
+//    if its squared NDC distance d² to the pixel centre is < r² and z > 0
+//    (PyTorch3D keeps z >= 0; we also apply near/far when they are set, see
+//    RenderOptions). The K nearest hits by (z, point index) are sorted front to
+//    back and composited with w_k = 1 - d_k² / r²:
+//        C = Σ_k w_k Π_{j<k} (1 - w_j) c_k,   black background.
+//
+// Pixel centres. With PixelConvention::kIntegerIndex, pixel column i has its
+// centre at the continuous coordinate u = i (OpenCV, MonST3R unprojection): a
+// pointmap unprojected from integer pixel indices renders back onto exactly its
+// own pixels. With kPixelCenter, pixel i's centre is at u = i + 0.5. PyTorch3D
+// puts pixel i's centre at NDC -(S/s)(1 - (2i + 1)/S) (S = that side's length,
+// s = min(W, H)), and a `PerspectiveCameras(in_ndc=False)` camera maps the
+// screen coordinate u = fx X / Z + cx to NDC (W/2 - u) / (s/2) (x flipped);
+// equating the two gives u = i + 0.5, i.e. the released pipeline interprets
+// MonST3R's K in the kPixelCenter convention (a half-pixel shift with respect
+// to how the pointmap was unprojected). The `geodrive-compat` preset therefore
+// uses kPixelCenter; everything else defaults to kIntegerIndex.
+//
+// Threads: frames are rendered in parallel (OpenMP, one frame per thread at a
+// time); every frame is computed by the same sequential code whatever the
+// thread count, so the output is byte-identical for 1 or N threads.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "geometry/camera.h"
+#include "geometry/point_cloud.h"
+#include "geometry/rigid3.h"
+
+namespace geodrive {
+
+enum class RenderMode { kZBuffer, kSoft };
+std::string ToString(RenderMode mode);
+// Parses "zbuffer" or "soft"; throws InputError otherwise.
+RenderMode ParseRenderMode(const std::string& text);
+
+struct RenderOptions {
+  RenderMode mode = RenderMode::kZBuffer;
+  // Output size. Cameras whose size differs are rescaled to it (ResizeCamera,
+  // in `pixel_convention`).
+  int width = 720;
+  int height = 480;
+  // Valid depth range (camera z, units of the cloud): near < z < far. The paper
+  // uses 0.1..100 m. In soft mode PyTorch3D only drops z < 0; set near = 0, far
+  // = +inf to match it exactly.
+  double near = 0.1;
+  double far = 100.0;
+  // kZBuffer: splat radius in pixels (0 = one pixel; otherwise every pixel
+  // whose centre lies within the radius of the projection, i.e. a disk).
+  double radius_px = 0.0;
+  // kSoft: splat radius in NDC units (short side spans 2) and points kept per
+  // pixel (1..32).
+  double radius_ndc = 0.01;
+  int points_per_pixel = 10;
+  // Where pixel centres are with respect to the camera's cx, cy (see the file
+  // comment).
+  PixelConvention pixel_convention = PixelConvention::kIntegerIndex;
+  // kZBuffer only: fill holes after splatting (off by default, as in the
+  // paper). Each of `hole_fill_iterations` passes gives every invalid pixel
+  // with at least `hole_fill_min_neighbors` valid 8-neighbours the colour,
+  // depth and index of its nearest-depth valid neighbour (ties: smaller point
+  // index). Filled pixels are marked kMaskFilled in the mask.
+  bool hole_fill = false;
+  int hole_fill_iterations = 2;
+  int hole_fill_min_neighbors = 3;
+  // Extra outputs.
+  bool output_index = false;  // per-pixel point index (CV_32S, -1 = none)
+  bool output_instance =
+      false;  // per-pixel instance id (CV_32S, -1 = none / background)
+  bool output_float_rgb = false;  // RGB in [0, 1] before rounding (CV_32FC3)
+  // Threads for RenderFrames (0 = OpenMP default). The result does not depend
+  // on it.
+  int num_threads = 0;
+
+  // Throws InputError on an invalid combination (size 0 or > 16384, K out of
+  // range, ...).
+  void Check() const;
+};
+
+// Mask values.
+constexpr uint8_t kMaskInvalid = 0;
+constexpr uint8_t kMaskFilled = 128;  // hole-filled pixel (zbuffer + hole_fill)
+constexpr uint8_t kMaskValid = 255;
+
+struct RenderedFrame {
+  cv::Mat rgb;    // CV_8UC3, RGB order, black where invalid
+  cv::Mat depth;  // CV_32F, camera z of the front-most point, 0 where invalid
+  cv::Mat mask;   // CV_8U, kMaskValid / kMaskFilled / kMaskInvalid
+  cv::Mat index;  // CV_32S point index (front-most), -1 = none; only if
+                  // output_index
+  cv::Mat instance;   // CV_32S instance id, -1 = none; only if output_instance
+  cv::Mat rgb_float;  // CV_32FC3 in [0, 1]; only if output_float_rgb
+  int64_t num_valid =
+      0;  // pixels hit by at least one point (filled pixels not included)
+  int64_t num_filled = 0;     // pixels filled by hole filling
+  int64_t num_projected = 0;  // points inside near/far and the image
+  double coverage() const;    // num_valid / (W * H)
+};
+
+struct RenderSummary {
+  int num_frames = 0;
+  int64_t num_points = 0;
+  double mean_coverage = 0, min_coverage = 0, max_coverage = 0;
+  std::vector<int>
+      empty_frames;  // frames where no point was visible (all-invalid)
+  double seconds = 0;
+  std::string BriefReport() const;
+};
+
+struct RenderResult {
+  std::vector<RenderedFrame> frames;
+  RenderSummary summary;
+};
+
+// Renders one frame. Throws InputError on bad input (empty cloud, non-finite
+// positions, invalid camera, invalid pose). A frame where nothing is visible is
+// returned all-invalid.
+RenderedFrame RenderFrame(const PointCloud& cloud_in_world,
+                          const PinholeCamera& camera,
+                          const Rigid3d& cam_from_world,
+                          const RenderOptions& options = {});
+
+// Renders one frame per pose. `cameras` holds one camera for all frames or one
+// per pose.
+RenderResult RenderFrames(const PointCloud& cloud_in_world,
+                          const std::vector<PinholeCamera>& cameras,
+                          const std::vector<Rigid3d>& cam_from_world,
+                          const RenderOptions& options = {});
+
+// Same, reusing the buffers already in `result` (frames of the same size and
+// options are overwritten in place; use this in loops to avoid re-allocating
+// and page-faulting outputs).
+void RenderFramesInto(const PointCloud& cloud_in_world,
+                      const std::vector<PinholeCamera>& cameras,
+                      const std::vector<Rigid3d>& cam_from_world,
+                      const RenderOptions& options,
+                      RenderResult* result);
+
+// Throws InputError("<what>: ...") if the pose has NaN/Inf or a rotation that
+// is not orthonormal (quaternion norm off by more than `tol`).
+void CheckPose(const Rigid3d& pose, const std::string& what, double tol = 1e-6);
+
+}  // namespace geodrive

@@ -1,0 +1,57 @@
+#pragma once
+// Video and image outputs for rendered conditioning clips.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+namespace geodrive {
+
+struct VideoWriteOptions {
+  double fps = 10;
+  // FourCC tried first through OpenCV's FFmpeg backend; "avc1" = H.264. If it
+  // cannot be opened, `fallback_fourcc` is used (with a warning on stderr).
+  std::string fourcc = "avc1";
+  std::string fallback_fourcc = "mp4v";
+  void Check() const;
+};
+
+struct VideoWriteResult {
+  std::string fourcc;  // the codec actually used
+  bool fell_back = false;
+  int frames = 0;
+  int width = 0, height = 0;  // written size (odd sizes are padded by one black
+                              // pixel for H.264)
+};
+
+// Writes RGB CV_8UC3 frames (all the same size) as an MP4. Throws InputError if
+// no codec can be opened, the frames are empty or of different sizes.
+VideoWriteResult WriteVideo(const std::string& path,
+                            const std::vector<cv::Mat>& frames_rgb,
+                            const VideoWriteOptions& options = {});
+
+// Lossless PNG sequence `<dir>/<prefix>NNNN.png` (4-digit, from 0). Returns the
+// paths.
+std::vector<std::string> WritePngSequence(
+    const std::string& dir,
+    const std::string& prefix,
+    const std::vector<cv::Mat>& frames_rgb);
+
+struct ContactSheetOptions {
+  int columns = 5;        // frames per row
+  int thumb_width = 240;  // each frame is resized to this width (aspect kept)
+  int gap = 4;            // pixels between thumbnails (black)
+  void Check() const;
+};
+// A grid of frames (row-major). If `ground_truth` is non-empty (same count as
+// `frames`), every row of renders is preceded by the row of ground-truth frames
+// for the same indices.
+cv::Mat MakeContactSheet(const std::vector<cv::Mat>& frames_rgb,
+                         const std::vector<cv::Mat>& ground_truth_rgb = {},
+                         const ContactSheetOptions& options = {});
+
+// Bilinear resize with align_corners=False semantics (PyTorch's F.interpolate,
+// OpenCV INTER_LINEAR).
+cv::Mat ResizeBilinear(const cv::Mat& image, int width, int height);
+
+}  // namespace geodrive

@@ -1,0 +1,155 @@
+#include "render/video_h264.h"
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/imgutils.h>
+#include <libavutil/opt.h>
+#include <libswscale/swscale.h>
+}
+
+#include <cstdio>
+#include <cstring>
+#include <memory>
+
+#include "geometry/status.h"
+
+namespace geodrive {
+
+void H264Options::Check() const {
+  GEODRIVE_CHECK_INPUT(fps > 0 && fps <= 240, "video: fps must be in (0, 240], got ", fps);
+  GEODRIVE_CHECK_INPUT(crf >= 0 && crf <= 51, "video: crf must be in [0, 51], got ", crf);
+  GEODRIVE_CHECK_INPUT(gop >= 1, "video: gop must be >= 1");
+}
+
+bool HasH264Encoder() { return avcodec_find_encoder_by_name("libx264") != nullptr; }
+
+namespace {
+
+std::string AvError(int code) {
+  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
+  av_strerror(code, buf, sizeof(buf));
+  return buf;
+}
+
+struct Cleanup {
+  AVFormatContext* fmt = nullptr;
+  AVCodecContext* codec = nullptr;
+  AVFrame* frame = nullptr;
+  AVPacket* packet = nullptr;
+  SwsContext* sws = nullptr;
+  bool io_open = false;
+  ~Cleanup() {
+    if (sws) sws_freeContext(sws);
+    if (packet) av_packet_free(&packet);
+    if (frame) av_frame_free(&frame);
+    if (codec) avcodec_free_context(&codec);
+    if (fmt) {
+      if (io_open) avio_closep(&fmt->pb);
+      avformat_free_context(fmt);
+    }
+  }
+};
+
+void Drain(Cleanup& c, AVStream* stream, const std::string& path) {
+  while (true) {
+    const int r = avcodec_receive_packet(c.codec, c.packet);
+    if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return;
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding failed (", AvError(r), ")");
+    av_packet_rescale_ts(c.packet, c.codec->time_base, stream->time_base);
+    c.packet->stream_index = stream->index;
+    const int w = av_interleaved_write_frame(c.fmt, c.packet);
+    GEODRIVE_CHECK_INPUT(w >= 0, path, ": writing failed (", AvError(w), ")");
+  }
+}
+
+}  // namespace
+
+void WriteH264Mp4(const std::string& path, const std::vector<cv::Mat>& frames,
+                  const H264Options& options) {
+  options.Check();
+  GEODRIVE_CHECK_INPUT(!frames.empty(), path, ": no frames to write");
+  const int w = frames[0].cols, h = frames[0].rows;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    GEODRIVE_CHECK_INPUT(frames[i].type() == CV_8UC3 && frames[i].cols == w && frames[i].rows == h,
+                         path, ": frame ", i, " is not an RGB ", w, "x", h, " image");
+  }
+  const int ew = w + (w % 2), eh = h + (h % 2);
+  const std::string tmp = path + ".tmp.mp4";
+  av_log_set_level(AV_LOG_ERROR);
+  Cleanup c;
+  int r = avformat_alloc_output_context2(&c.fmt, nullptr, "mp4", tmp.c_str());
+  GEODRIVE_CHECK_INPUT(r >= 0 && c.fmt, path, ": cannot create an mp4 muxer (", AvError(r), ")");
+  const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
+  GEODRIVE_CHECK_INPUT(codec, path, ": this FFmpeg has no libx264 H.264 encoder");
+  AVStream* stream = avformat_new_stream(c.fmt, nullptr);
+  c.codec = avcodec_alloc_context3(codec);
+  c.codec->width = ew;
+  c.codec->height = eh;
+  c.codec->pix_fmt = AV_PIX_FMT_YUV420P;
+  // A rational time base from the fps (e.g. 10 -> 1/10, 12.5 -> 2/25).
+  const AVRational rate = av_d2q(options.fps, 100000);
+  c.codec->time_base = av_inv_q(rate);
+  c.codec->framerate = rate;
+  c.codec->gop_size = options.gop;
+  c.codec->thread_count = 1;  // determinism
+  c.codec->flags |= AV_CODEC_FLAG_BITEXACT;
+  if (c.fmt->oformat->flags & AVFMT_GLOBALHEADER) c.codec->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
+  av_opt_set(c.codec->priv_data, "preset", options.preset.c_str(), 0);
+  av_opt_set(c.codec->priv_data, "crf", std::to_string(options.crf).c_str(), 0);
+  r = avcodec_open2(c.codec, codec, nullptr);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the H.264 encoder (", AvError(r), ")");
+  r = avcodec_parameters_from_context(stream->codecpar, c.codec);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (", AvError(r), ")");
+  stream->time_base = c.codec->time_base;
+  stream->avg_frame_rate = rate;
+  c.fmt->flags |= AVFMT_FLAG_BITEXACT;
+  r = avio_open(&c.fmt->pb, tmp.c_str(), AVIO_FLAG_WRITE);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (", AvError(r), ")");
+  c.io_open = true;
+  AVDictionary* mux_options = nullptr;
+  av_dict_set(&mux_options, "movflags", "+faststart", 0);
+  r = avformat_write_header(c.fmt, &mux_options);
+  av_dict_free(&mux_options);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot write the mp4 header (", AvError(r), ")");
+
+  c.frame = av_frame_alloc();
+  c.frame->format = AV_PIX_FMT_YUV420P;
+  c.frame->width = ew;
+  c.frame->height = eh;
+  r = av_frame_get_buffer(c.frame, 0);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": frame allocation failed");
+  // Zero the planes including the row padding beyond the width: the encoder may read it, and
+  // recycled heap memory would make the output depend on what was there before.
+  for (int p = 0; p < 3; ++p) {
+    std::memset(c.frame->data[p], 0, static_cast<size_t>(c.frame->linesize[p]) * (p ? eh / 2 : eh));
+  }
+  c.packet = av_packet_alloc();
+  c.sws = sws_getContext(ew, eh, AV_PIX_FMT_RGB24, ew, eh, AV_PIX_FMT_YUV420P,
+                         SWS_BILINEAR | SWS_ACCURATE_RND | SWS_BITEXACT, nullptr, nullptr, nullptr);
+  GEODRIVE_CHECK_INPUT(c.sws, path, ": colour conversion setup failed");
+  // Two spare zero rows: swscale's SIMD paths may read a few bytes past the last row.
+  cv::Mat padded_storage(eh + 2, ew, CV_8UC3, cv::Scalar(0, 0, 0));
+  cv::Mat padded = padded_storage(cv::Rect(0, 0, ew, eh));
+  for (size_t i = 0; i < frames.size(); ++i) {
+    frames[i].copyTo(padded(cv::Rect(0, 0, w, h)));
+    r = av_frame_make_writable(c.frame);
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": frame not writable");
+    const uint8_t* src[1] = {padded.data};
+    const int src_stride[1] = {static_cast<int>(padded.step[0])};
+    sws_scale(c.sws, src, src_stride, 0, eh, c.frame->data, c.frame->linesize);
+    c.frame->pts = static_cast<int64_t>(i);
+    r = avcodec_send_frame(c.codec, c.frame);
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding frame ", i, " failed (", AvError(r), ")");
+    Drain(c, stream, path);
+  }
+  avcodec_send_frame(c.codec, nullptr);
+  Drain(c, stream, path);
+  r = av_write_trailer(c.fmt);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot finish the mp4 (", AvError(r), ")");
+  avio_closep(&c.fmt->pb);
+  c.io_open = false;
+  GEODRIVE_CHECK_INPUT(std::rename(tmp.c_str(), path.c_str()) == 0, path, ": rename failed");
+}
+
+}  // namespace geodrive

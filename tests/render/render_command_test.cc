@@ -1,0 +1,145 @@
+// End-to-end tests of `geodrive render`.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "geometry/image_io.h"
+#include "geometry/npy.h"
+#include "geometry/trajectory_json.h"
+#include "tests/common/test_util.h"
+#include "tests/render/render_test_util.h"
+
+namespace geodrive {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Inputs {
+  std::string image, depth, intrinsics, trajectory;
+  test::RayCastScene scene;
+};
+
+Inputs WriteInputs(const std::string& dir) {
+  Inputs in;
+  const PinholeCamera camera(250, 250, 127.5, 79.5, 256, 160);
+  in.scene = test::RayCast(camera, Rigid3d());
+  in.image = dir + "/frame0.png";
+  WriteImageRgb(in.image, in.scene.rgb);
+  in.depth = dir + "/frame0.npy";
+  WriteNpy(in.depth, NpyArray::Float32({camera.height, camera.width},
+                                       in.scene.depth.ptr<float>()));
+  in.intrinsics = dir + "/K.txt";
+  std::ofstream(in.intrinsics) << "250 0 127.5 0 250 79.5 0 0 1\n";
+  Trajectory t;
+  for (int k = 0; k < 6; ++k) {
+    t.Add(0.1 * k, Rigid3d(Eigen::Quaterniond::Identity(),
+                           Eigen::Vector3d(0, 0, 0.5 * k)));
+  }
+  in.trajectory = dir + "/traj.json";
+  WriteTrajectoryJson(in.trajectory, t);
+  return in;
+}
+
+TEST(RenderCommand, ImageDepthToVideoFramesAndReport) {
+  const std::string dir = test::MakeTempDir("render_cmd_image");
+  const Inputs in = WriteInputs(dir);
+  const std::string out = dir + "/out";
+  std::string log;
+  const std::string cmd = test::GeodriveBinary() + " render --image " +
+                          in.image + " --depth " + in.depth + " --intrinsics " +
+                          in.intrinsics + " --trajectory " + in.trajectory +
+                          " --size 160x256 --frames --out " + out;
+  ASSERT_EQ(test::RunCommand(cmd, &log), 0) << log;
+  EXPECT_TRUE(fs::exists(out + "/render.mp4"));
+  EXPECT_TRUE(fs::exists(out + "/contact_sheet.png"));
+  ASSERT_TRUE(fs::exists(out + "/frames/render_0005.png"));
+  // Frame 0 (PNG, lossless) reproduces the input image at every rendered pixel.
+  const cv::Mat f0 = ReadImageRgb(out + "/frames/render_0000.png");
+  const cv::Mat has_depth = in.scene.depth > 0;
+  EXPECT_GE(test::MaskedPsnr(f0, in.scene.rgb, has_depth), 60.0);
+  std::ifstream rj(out + "/render.json");
+  const nlohmann::json report = nlohmann::json::parse(rj);
+  EXPECT_EQ(report["options"]["mode"], "zbuffer");
+  EXPECT_EQ(report["video"]["fourcc"], "avc1");
+  ASSERT_EQ(report["frames"].size(), 6u);
+  const double c0 = report["frames"][0]["coverage"];
+  const double c5 = report["frames"][5]["coverage"];
+  EXPECT_GT(c0, 0.95 * cv::countNonZero(has_depth) / double(has_depth.total()));
+  EXPECT_LT(c5, c0);  // driving forward opens holes
+}
+
+TEST(RenderCommand, ShiftAndCompatPreset) {
+  const std::string dir = test::MakeTempDir("render_cmd_compat");
+  const Inputs in = WriteInputs(dir);
+  const std::string out = dir + "/out";
+  std::string log;
+  const std::string cmd =
+      test::GeodriveBinary() + " render --image " + in.image + " --depth " +
+      in.depth + " --intrinsics " + in.intrinsics + " --trajectory " +
+      in.trajectory + " --preset geodrive-compat --shift-left 1 --reverse " +
+      "--frames --no-video --out " + out;
+  ASSERT_EQ(test::RunCommand(cmd, &log), 0) << log;
+  std::ifstream rj(out + "/render.json");
+  const nlohmann::json report = nlohmann::json::parse(rj);
+  EXPECT_EQ(report["options"]["mode"], "soft");
+  EXPECT_EQ(report["output_size"]["width"], 1024);
+  EXPECT_EQ(report["output_size"]["height"], 576);
+  EXPECT_EQ(report["edits"], "shift_left=1 forward_then_back");
+  EXPECT_EQ(report["options"]["frame0_replaced"], true);
+  const cv::Mat f0 = ReadImageRgb(out + "/frames/render_0000.png");
+  EXPECT_EQ(f0.cols, 1024);
+}
+
+TEST(RenderCommand, BadInputExitsTwoWithOneLine) {
+  const std::string dir = test::MakeTempDir("render_cmd_bad");
+  const Inputs in = WriteInputs(dir);
+  const std::string base = test::GeodriveBinary() + " render --image " +
+                           in.image + " --intrinsics " + in.intrinsics +
+                           " --trajectory " + in.trajectory + " --out " + dir +
+                           "/out";
+  std::string log;
+  EXPECT_EQ(test::RunCommand(base + " --depth " + dir + "/missing.npy", &log),
+            2)
+      << log;
+  EXPECT_NE(log.find("missing.npy"), std::string::npos) << log;
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+  EXPECT_EQ(
+      test::RunCommand(base + " --depth " + in.depth + " --size 0x100", &log),
+      2)
+      << log;
+  EXPECT_EQ(test::RunCommand(
+                base + " --depth " + in.depth + " --size 20000x100", &log),
+            2)
+      << log;
+  // A trajectory with a non-orthonormal rotation.
+  const std::string bad_traj = dir + "/bad.json";
+  std::ofstream(bad_traj)
+      << R"({"format": "geodrive-trajectory", "version": 1, "frames": [
+      {"position": [0,0,0], "rotation": [[1,0.3,0],[0,1,0],[0,0,1]]}]})";
+  EXPECT_EQ(test::RunCommand(
+                test::GeodriveBinary() + " render --image " + in.image +
+                    " --depth " + in.depth + " --intrinsics " + in.intrinsics +
+                    " --trajectory " + bad_traj + " --out " + dir + "/out2",
+                &log),
+            2)
+      << log;
+  EXPECT_NE(log.find("orthonormal"), std::string::npos) << log;
+  // Zero focal length.
+  const std::string bad_k = dir + "/badK.txt";
+  std::ofstream(bad_k) << "0 0 127.5 0 250 79.5 0 0 1\n";
+  EXPECT_EQ(test::RunCommand(test::GeodriveBinary() + " render --image " +
+                                 in.image + " --depth " + in.depth +
+                                 " --intrinsics " + bad_k + " --trajectory " +
+                                 in.trajectory + " --out " + dir + "/out3",
+                             &log),
+            2)
+      << log;
+}
+
+}  // namespace
+}  // namespace geodrive

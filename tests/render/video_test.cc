@@ -1,0 +1,126 @@
+#include "render/video.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "geometry/status.h"
+#include "tests/common/test_util.h"
+
+namespace geodrive {
+namespace {
+
+std::vector<cv::Mat> MakeFrames(int n, int w, int h) {
+  std::vector<cv::Mat> frames;
+  for (int i = 0; i < n; ++i) {
+    cv::Mat m(h, w, CV_8UC3);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        m.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<uint8_t>(x * 255 / w),
+                                          static_cast<uint8_t>(y * 255 / h),
+                                          static_cast<uint8_t>(i * 255 / n));
+      }
+    }
+    frames.push_back(m);
+  }
+  return frames;
+}
+
+TEST(Video, H264Mp4WritesAndReadsBack) {
+  const std::string dir = test::MakeTempDir("video_h264");
+  const std::vector<cv::Mat> frames = MakeFrames(12, 160, 96);
+  const std::string path = dir + "/clip.mp4";
+  const VideoWriteResult r = WriteVideo(path, frames);
+  std::cout << "[video] fourcc used: " << r.fourcc
+            << (r.fell_back ? " (fallback)" : "") << "\n";
+  // Debian's OpenCV 4.6 + FFmpeg 5.1 (libx264) provides avc1; a fallback here
+  // means the install lost H.264 support.
+  EXPECT_EQ(r.fourcc, "avc1");
+  EXPECT_FALSE(r.fell_back);
+  EXPECT_EQ(r.frames, 12);
+  cv::VideoCapture cap(path, cv::CAP_FFMPEG);
+  ASSERT_TRUE(cap.isOpened());
+  int count = 0;
+  double max_mean_err = 0;
+  cv::Mat bgr, rgb;
+  while (cap.read(bgr)) {
+    ASSERT_EQ(bgr.cols, 160);
+    ASSERT_EQ(bgr.rows, 96);
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    cv::Mat diff;
+    cv::absdiff(rgb, frames[count], diff);
+    const cv::Scalar m = cv::mean(diff);
+    max_mean_err = std::max({max_mean_err, m[0], m[1], m[2]});
+    ++count;
+  }
+  EXPECT_EQ(count, 12);
+  // Lossy but close on smooth gradients (RGB order preserved: a swapped R/B
+  // gives ~100).
+  EXPECT_LT(max_mean_err, 6.0);
+}
+
+TEST(Video, OddSizesArePaddedForH264) {
+  const std::string dir = test::MakeTempDir("video_odd");
+  const VideoWriteResult r =
+      WriteVideo(dir + "/odd.mp4", MakeFrames(3, 99, 51));
+  EXPECT_EQ(r.width, 100);
+  EXPECT_EQ(r.height, 52);
+}
+
+TEST(Video, UnknownCodecFallsBackWithWarning) {
+  const std::string dir = test::MakeTempDir("video_fallback");
+  VideoWriteOptions o;
+  o.fourcc = "zzzz";  // no such encoder
+  const VideoWriteResult r =
+      WriteVideo(dir + "/fb.mp4", MakeFrames(3, 64, 48), o);
+  EXPECT_TRUE(r.fell_back);
+  EXPECT_EQ(r.fourcc, "mp4v");
+  o.fallback_fourcc = "";
+  EXPECT_THROW(WriteVideo(dir + "/none.mp4", MakeFrames(3, 64, 48), o),
+               InputError);
+}
+
+TEST(Video, PngSequenceIsLossless) {
+  const std::string dir = test::MakeTempDir("video_png");
+  const std::vector<cv::Mat> frames = MakeFrames(4, 33, 17);
+  const std::vector<std::string> paths =
+      WritePngSequence(dir + "/frames", "render_", frames);
+  ASSERT_EQ(paths.size(), 4u);
+  EXPECT_EQ(std::filesystem::path(paths[3]).filename().string(),
+            "render_0003.png");
+  for (size_t i = 0; i < paths.size(); ++i) {
+    cv::Mat back = cv::imread(paths[i], cv::IMREAD_COLOR);
+    cv::cvtColor(back, back, cv::COLOR_BGR2RGB);
+    EXPECT_EQ(cv::norm(back, frames[i], cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(Video, ContactSheetLayoutWithGroundTruthAbove) {
+  std::vector<cv::Mat> renders, gt;
+  for (int i = 0; i < 7; ++i) {
+    renders.emplace_back(48, 64, CV_8UC3, cv::Scalar(200, 0, 0));
+    gt.emplace_back(48, 64, CV_8UC3, cv::Scalar(0, 0, 200));
+  }
+  ContactSheetOptions o;
+  o.columns = 3;
+  o.thumb_width = 64;
+  o.gap = 2;
+  const cv::Mat sheet = MakeContactSheet(renders, gt, o);
+  // 7 frames in 3 columns: 3 grid rows, each a GT row + a render row.
+  EXPECT_EQ(sheet.cols, 3 * 64 + 4 * 2);
+  EXPECT_EQ(sheet.rows, 6 * 48 + 7 * 2);
+  EXPECT_EQ(sheet.at<cv::Vec3b>(2 + 10, 2 + 10),
+            cv::Vec3b(0, 0, 200));  // GT, row 0
+  EXPECT_EQ(sheet.at<cv::Vec3b>(2 + 48 + 2 + 10, 2 + 10),
+            cv::Vec3b(200, 0, 0));  // render, row 1
+  const cv::Mat plain = MakeContactSheet(renders, {}, o);
+  EXPECT_EQ(plain.rows, 3 * 48 + 4 * 2);
+  EXPECT_THROW(MakeContactSheet(renders, {gt[0]}, o), InputError);
+  EXPECT_THROW(WriteVideo("/nonexistent_dir/x.mp4", {}), InputError);
+}
+
+}  // namespace
+}  // namespace geodrive
