@@ -1,4 +1,5 @@
-// `geodrive build-dataset`: nuScenes-like clips -> condition/video training pairs.
+// `geodrive build-dataset`: nuScenes-like clips -> condition/video training
+// pairs.
 
 #include <cstdlib>
 #include <iostream>
@@ -26,7 +27,8 @@ struct Args {
 
 void ParseShard(const std::string& text, int* index, int* count) {
   const auto slash = text.find('/');
-  GEODRIVE_CHECK_INPUT(slash != std::string::npos, "--shard: expected i/N, got '", text, "'");
+  GEODRIVE_CHECK_INPUT(slash != std::string::npos,
+                       "--shard: expected i/N, got '", text, "'");
   try {
     *index = std::stoi(text.substr(0, slash));
     *count = std::stoi(text.substr(slash + 1));
@@ -37,8 +39,8 @@ void ParseShard(const std::string& text, int* index, int* count) {
 
 void ParseSize(const std::string& text, int* width, int* height) {
   const auto x = text.find('x');
-  GEODRIVE_CHECK_INPUT(x != std::string::npos, "--size: expected HxW (e.g. 480x720), got '", text,
-                       "'");
+  GEODRIVE_CHECK_INPUT(x != std::string::npos,
+                       "--size: expected HxW (e.g. 480x720), got '", text, "'");
   try {
     *height = std::stoi(text.substr(0, x));
     *width = std::stoi(text.substr(x + 1));
@@ -55,8 +57,8 @@ bool UnderMpiLauncher() {
 int Run(Args& a) {
   if (!a.merge.empty()) {
     const int n = MergeBuildOutputs(a.merge);
-    std::cout << "merged " << n << " pairs into " << a.merge << "/manifest.jsonl; report: "
-              << a.merge << "/report.html\n";
+    std::cout << "merged " << n << " pairs into " << a.merge
+              << "/manifest.jsonl; report: " << a.merge << "/report.html\n";
     return kExitOk;
   }
   BuildDatasetOptions& o = a.options;
@@ -81,7 +83,8 @@ int Run(Args& a) {
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
     mpi = true;
-    GEODRIVE_CHECK_INPUT(o.shard_count == 1, "--shard cannot be combined with mpirun");
+    GEODRIVE_CHECK_INPUT(o.shard_count == 1,
+                         "--shard cannot be combined with mpirun");
     o.shard_index = rank;
     o.shard_count = size;
     if (rank != 0) o.quiet = true;
@@ -89,8 +92,10 @@ int Run(Args& a) {
 #else
   if (UnderMpiLauncher() && std::getenv("OMPI_COMM_WORLD_SIZE") &&
       std::string(std::getenv("OMPI_COMM_WORLD_SIZE")) != "1") {
-    ThrowInputError("build-dataset", "started by mpirun, but this geodrive was built without MPI "
-                                     "(configure with -DGEODRIVE_WITH_MPI=ON)");
+    ThrowInputError(
+        "build-dataset",
+        "started by mpirun, but this geodrive was built without MPI "
+        "(configure with -DGEODRIVE_WITH_MPI=ON)");
   }
 #endif
   InstallStopSignalHandlers();
@@ -99,28 +104,32 @@ int Run(Args& a) {
 #ifdef GEODRIVE_WITH_MPI
   if (mpi) {
     MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
-    MPI_Allreduce(MPI_IN_PLACE, &interrupted, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &interrupted, 1, MPI_INT, MPI_MAX,
+                  MPI_COMM_WORLD);
     if (rank == 0) MergeBuildOutputs(o.out);
     MPI_Barrier(MPI_COMM_WORLD);
     MPI_Finalize();
   }
 #endif
   if (rank == 0) {
-    std::cout << "build-dataset" << (mpi ? " (" + std::to_string(size) + " MPI ranks)" : "")
+    std::cout << "build-dataset"
+              << (mpi ? " (" + std::to_string(size) + " MPI ranks)" : "")
               << ": " << s.BriefReport() << "\n";
     if (o.shard_count == 1 || mpi) {
       std::cout << "pairs: " << o.out << "/pairs/  manifest: " << o.out
                 << "/manifest.jsonl  report: " << o.out << "/report.html\n";
     } else {
       std::cout << "shard " << o.shard_index << "/" << o.shard_count
-                << " done; when all shards finish run: geodrive build-dataset --merge " << o.out
-                << "\n";
+                << " done; when all shards finish run: geodrive build-dataset "
+                   "--merge "
+                << o.out << "\n";
     }
   }
   if (interrupted) return 130;
   if (failed > 0) {
     if (rank == 0) {
-      std::cerr << "build-dataset: completed with failures (see " << o.out << "/failures.jsonl)\n";
+      std::cerr << "build-dataset: completed with failures (see " << o.out
+                << "/failures.jsonl)\n";
     }
     return kExitCompletedWithFailures;
   }
@@ -131,53 +140,76 @@ CommandRunner Setup(CLI::App& app) {
   auto a = std::make_shared<Args>();
   BuildDatasetOptions& o = a->options;
   app.footer(
-      "Builds one pair folder per 25-frame CAM_FRONT clip: OUT/pairs/<clip_id>/{gt.mp4, cond.mp4,\n"
-      "first_frame.png, boxes.json, meta.json, preview.png}, plus OUT/manifest.jsonl,\n"
-      "OUT/failures.jsonl and OUT/report.html. Reruns skip finished pairs (resume after a kill).\n"
-      "Under `mpirun -n K` (built with GEODRIVE_WITH_MPI) clips are split across ranks and rank 0\n"
-      "merges. Exit codes: 0 ok, 2 bad input, 3 completed with failures, 130 interrupted.");
-  app.add_option("--dataroot", o.dataroot, "nuScenes root (holds <version>/, samples/, sweeps/)");
-  app.add_option("--version", o.version, "Table folder, e.g. v1.0-mini")->capture_default_str();
+      "Builds one pair folder per 25-frame CAM_FRONT clip: "
+      "OUT/pairs/<clip_id>/{gt.mp4, cond.mp4,\n"
+      "first_frame.png, boxes.json, meta.json, preview.png}, plus "
+      "OUT/manifest.jsonl,\n"
+      "OUT/failures.jsonl and OUT/report.html. Reruns skip finished pairs "
+      "(resume after a kill).\n"
+      "Under `mpirun -n K` (built with GEODRIVE_WITH_MPI) clips are split "
+      "across ranks and rank 0\n"
+      "merges. Exit codes: 0 ok, 2 bad input, 3 completed with failures, 130 "
+      "interrupted.");
+  app.add_option("--dataroot", o.dataroot,
+                 "nuScenes root (holds <version>/, samples/, sweeps/)");
+  app.add_option("--version", o.version, "Table folder, e.g. v1.0-mini")
+      ->capture_default_str();
   app.add_option("--monst3r", o.monst3r_root,
                  "Folder of MonST3R outputs, one <clip_id>/ folder per clip");
   app.add_option("--out", o.out, "Output folder");
   app.add_option("--geometry", o.geometry,
-                 "monst3r (default when --monst3r is given) or lidar (aggregated static LiDAR, "
+                 "monst3r (default when --monst3r is given) or lidar "
+                 "(aggregated static LiDAR, "
                  "no MonST3R needed)")
       ->check(CLI::IsMember({"auto", "monst3r", "lidar"}));
-  app.add_option("--threads", o.threads, "Clips processed in parallel")->capture_default_str();
-  app.add_option("--shard", a->shard, "Process shard i of N (i/N), e.g. for Slurm job arrays")
+  app.add_option("--threads", o.threads, "Clips processed in parallel")
       ->capture_default_str();
-  app.add_option("--preset", o.preset, "paper (z-buffer) or geodrive-compat (released pipeline)")
+  app.add_option("--shard", a->shard,
+                 "Process shard i of N (i/N), e.g. for Slurm job arrays")
+      ->capture_default_str();
+  app.add_option("--preset", o.preset,
+                 "paper (z-buffer) or geodrive-compat (released pipeline)")
       ->check(CLI::IsMember({"paper", "geodrive-compat"}))
       ->capture_default_str();
-  app.add_option("--edit-mode", o.edit_mode, "Dynamic editing from the clip's boxes: 3d, 2d, none")
+  app.add_option("--edit-mode", o.edit_mode,
+                 "Dynamic editing from the clip's boxes: 3d, 2d, none")
       ->check(CLI::IsMember({"3d", "2d", "none"}))
       ->capture_default_str();
-  app.add_option("--clips", a->clips, "Comma-separated clip ids (default: all clips)");
-  app.add_option("--max-clips", o.max_clips, "Stop after this many clips (0 = all)");
-  app.add_option("--stride", o.clip_stride, "CAM_FRONT frames between clip starts")
+  app.add_option("--clips", a->clips,
+                 "Comma-separated clip ids (default: all clips)");
+  app.add_option("--max-clips", o.max_clips,
+                 "Stop after this many clips (0 = all)");
+  app.add_option("--stride", o.clip_stride,
+                 "CAM_FRONT frames between clip starts")
       ->capture_default_str();
   app.add_option("--size", a->size, "Output HxW")->capture_default_str();
   app.add_option("--resize-mode", o.resize_mode,
-                 "resize (plain, GeoDrive training) or center-crop (GeoDrive inference)")
+                 "resize (plain, GeoDrive training) or center-crop (GeoDrive "
+                 "inference)")
       ->check(CLI::IsMember({"resize", "center-crop"}))
       ->capture_default_str();
-  app.add_option("--fps", o.fps, "Frame rate written in the videos (12 Hz clips as 10 fps, as Vista)")
+  app.add_option(
+         "--fps", o.fps,
+         "Frame rate written in the videos (12 Hz clips as 10 fps, as Vista)")
       ->capture_default_str();
-  app.add_flag("--lossless-frames", o.lossless_frames, "Also write PNG frame folders");
-  app.add_option("--min-confidence", o.min_confidence,
-                 "MonST3R confidence threshold in [0,1] (1 - 1/raw; paper tau = 0.65)")
+  app.add_flag("--lossless-frames", o.lossless_frames,
+               "Also write PNG frame folders");
+  app.add_option(
+         "--min-confidence", o.min_confidence,
+         "MonST3R confidence threshold in [0,1] (1 - 1/raw; paper tau = 0.65)")
       ->capture_default_str();
-  app.add_option("--splat-radius", o.splat_radius_px, "Paper preset splat radius (output px)")
+  app.add_option("--splat-radius", o.splat_radius_px,
+                 "Paper preset splat radius (output px)")
       ->capture_default_str();
   app.add_flag("--quiet", o.quiet, "No progress output");
   app.add_option("--merge", a->merge,
-                 "Merge the shard outputs in this folder (manifest, failures, report) and exit");
+                 "Merge the shard outputs in this folder (manifest, failures, "
+                 "report) and exit");
   return [a] {
     if (a->merge.empty()) {
-      GEODRIVE_CHECK_INPUT(!a->options.dataroot.empty() && !a->options.out.empty(),
-                           "build-dataset: --dataroot and --out are required (or --merge OUT)");
+      GEODRIVE_CHECK_INPUT(
+          !a->options.dataroot.empty() && !a->options.out.empty(),
+          "build-dataset: --dataroot and --out are required (or --merge OUT)");
     }
     return Run(*a);
   };
@@ -185,7 +217,10 @@ CommandRunner Setup(CLI::App& app) {
 
 }  // namespace
 
-GEODRIVE_REGISTER_COMMAND(build_dataset, "build-dataset",
-                          "Build condition/video training pairs from nuScenes-like clips", Setup);
+GEODRIVE_REGISTER_COMMAND(
+    build_dataset,
+    "build-dataset",
+    "Build condition/video training pairs from nuScenes-like clips",
+    Setup);
 
 }  // namespace geodrive

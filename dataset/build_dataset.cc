@@ -32,6 +32,7 @@
 #include "render/presets.h"
 #include "render/renderer.h"
 #include "render/video.h"
+#include "render/video_h264.h"
 
 namespace geodrive {
 
@@ -582,10 +583,10 @@ PairMeta BuildPair(const ClipContext& ctx,
 
   // 5. Encode and write the pair folder.
   timer.Run("encode", [&] {
-    VideoWriteOptions vo;
+    H264Options vo;
     vo.fps = opt.fps;
-    WriteVideo(tmp_dir + "/gt.mp4", gt, vo);
-    WriteVideo(tmp_dir + "/cond.mp4", cond, vo);
+    WriteH264Mp4(tmp_dir + "/gt.mp4", gt, vo);
+    WriteH264Mp4(tmp_dir + "/cond.mp4", cond, vo);
     if (opt.lossless_frames) {
       WritePngSequence(tmp_dir + "/gt_frames", "frame_", gt);
       WritePngSequence(tmp_dir + "/cond_frames", "frame_", cond);

@@ -8,6 +8,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "geometry/status.h"
+#include "render/video_h264.h"
 
 namespace geodrive {
 namespace {
@@ -49,6 +50,15 @@ VideoWriteResult WriteVideo(const std::string& path,
   result.width = frames_rgb[0].cols + (frames_rgb[0].cols % 2);
   result.height = frames_rgb[0].rows + (frames_rgb[0].rows % 2);
   const cv::Size size(result.width, result.height);
+  if (options.fourcc == "avc1" && HasH264Encoder()) {
+    // Deterministic libx264 path (byte-identical files for identical frames).
+    H264Options h264;
+    h264.fps = options.fps;
+    WriteH264Mp4(path, frames_rgb, h264);
+    result.fourcc = "avc1";
+    result.frames = static_cast<int>(frames_rgb.size());
+    return result;
+  }
   cv::VideoWriter writer;
   result.fourcc = options.fourcc;
   if (!writer.open(path, cv::CAP_FFMPEG, FourCC(options.fourcc), options.fps,

@@ -5,24 +5,28 @@ extern "C" {
 #include <libavformat/avformat.h>
 #include <libavutil/imgutils.h>
 #include <libavutil/opt.h>
-#include <libswscale/swscale.h>
 }
 
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <opencv2/imgproc.hpp>
 
 #include "geometry/status.h"
 
 namespace geodrive {
 
 void H264Options::Check() const {
-  GEODRIVE_CHECK_INPUT(fps > 0 && fps <= 240, "video: fps must be in (0, 240], got ", fps);
-  GEODRIVE_CHECK_INPUT(crf >= 0 && crf <= 51, "video: crf must be in [0, 51], got ", crf);
+  GEODRIVE_CHECK_INPUT(fps > 0 && fps <= 240,
+                       "video: fps must be in (0, 240], got ", fps);
+  GEODRIVE_CHECK_INPUT(crf >= 0 && crf <= 51,
+                       "video: crf must be in [0, 51], got ", crf);
   GEODRIVE_CHECK_INPUT(gop >= 1, "video: gop must be >= 1");
 }
 
-bool HasH264Encoder() { return avcodec_find_encoder_by_name("libx264") != nullptr; }
+bool HasH264Encoder() {
+  return avcodec_find_encoder_by_name("libx264") != nullptr;
+}
 
 namespace {
 
@@ -37,10 +41,8 @@ struct Cleanup {
   AVCodecContext* codec = nullptr;
   AVFrame* frame = nullptr;
   AVPacket* packet = nullptr;
-  SwsContext* sws = nullptr;
   bool io_open = false;
   ~Cleanup() {
-    if (sws) sws_freeContext(sws);
     if (packet) av_packet_free(&packet);
     if (frame) av_frame_free(&frame);
     if (codec) avcodec_free_context(&codec);
@@ -65,23 +67,28 @@ void Drain(Cleanup& c, AVStream* stream, const std::string& path) {
 
 }  // namespace
 
-void WriteH264Mp4(const std::string& path, const std::vector<cv::Mat>& frames,
+void WriteH264Mp4(const std::string& path,
+                  const std::vector<cv::Mat>& frames,
                   const H264Options& options) {
   options.Check();
   GEODRIVE_CHECK_INPUT(!frames.empty(), path, ": no frames to write");
   const int w = frames[0].cols, h = frames[0].rows;
   for (size_t i = 0; i < frames.size(); ++i) {
-    GEODRIVE_CHECK_INPUT(frames[i].type() == CV_8UC3 && frames[i].cols == w && frames[i].rows == h,
-                         path, ": frame ", i, " is not an RGB ", w, "x", h, " image");
+    GEODRIVE_CHECK_INPUT(frames[i].type() == CV_8UC3 && frames[i].cols == w &&
+                             frames[i].rows == h,
+                         path, ": frame ", i, " is not an RGB ", w, "x", h,
+                         " image");
   }
   const int ew = w + (w % 2), eh = h + (h % 2);
   const std::string tmp = path + ".tmp.mp4";
   av_log_set_level(AV_LOG_ERROR);
   Cleanup c;
   int r = avformat_alloc_output_context2(&c.fmt, nullptr, "mp4", tmp.c_str());
-  GEODRIVE_CHECK_INPUT(r >= 0 && c.fmt, path, ": cannot create an mp4 muxer (", AvError(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0 && c.fmt, path, ": cannot create an mp4 muxer (",
+                       AvError(r), ")");
   const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
-  GEODRIVE_CHECK_INPUT(codec, path, ": this FFmpeg has no libx264 H.264 encoder");
+  GEODRIVE_CHECK_INPUT(codec, path,
+                       ": this FFmpeg has no libx264 H.264 encoder");
   AVStream* stream = avformat_new_stream(c.fmt, nullptr);
   c.codec = avcodec_alloc_context3(codec);
   c.codec->width = ew;
@@ -94,62 +101,90 @@ void WriteH264Mp4(const std::string& path, const std::vector<cv::Mat>& frames,
   c.codec->gop_size = options.gop;
   c.codec->thread_count = 1;  // determinism
   c.codec->flags |= AV_CODEC_FLAG_BITEXACT;
-  if (c.fmt->oformat->flags & AVFMT_GLOBALHEADER) c.codec->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
+  if (c.fmt->oformat->flags & AVFMT_GLOBALHEADER)
+    c.codec->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
   av_opt_set(c.codec->priv_data, "preset", options.preset.c_str(), 0);
   av_opt_set(c.codec->priv_data, "crf", std::to_string(options.crf).c_str(), 0);
+  // Determinism: one thread, no threaded lookahead, x264's deterministic mode,
+  // and no mbtree (with mbtree the bytes changed between runs of the same
+  // frames in a multi-threaded process).
+  av_opt_set(c.codec->priv_data, "x264-params",
+             "threads=1:sync-lookahead=0:deterministic=1:mbtree=0", 0);
   r = avcodec_open2(c.codec, codec, nullptr);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the H.264 encoder (", AvError(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the H.264 encoder (",
+                       AvError(r), ")");
   r = avcodec_parameters_from_context(stream->codecpar, c.codec);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (", AvError(r), ")");
   stream->time_base = c.codec->time_base;
   stream->avg_frame_rate = rate;
   c.fmt->flags |= AVFMT_FLAG_BITEXACT;
   r = avio_open(&c.fmt->pb, tmp.c_str(), AVIO_FLAG_WRITE);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (", AvError(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (", AvError(r),
+                       ")");
   c.io_open = true;
   AVDictionary* mux_options = nullptr;
   av_dict_set(&mux_options, "movflags", "+faststart", 0);
   r = avformat_write_header(c.fmt, &mux_options);
   av_dict_free(&mux_options);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot write the mp4 header (", AvError(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot write the mp4 header (",
+                       AvError(r), ")");
 
-  c.frame = av_frame_alloc();
-  c.frame->format = AV_PIX_FMT_YUV420P;
-  c.frame->width = ew;
-  c.frame->height = eh;
-  r = av_frame_get_buffer(c.frame, 0);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": frame allocation failed");
-  // Zero the planes including the row padding beyond the width: the encoder may read it, and
-  // recycled heap memory would make the output depend on what was there before.
-  for (int p = 0; p < 3; ++p) {
-    std::memset(c.frame->data[p], 0, static_cast<size_t>(c.frame->linesize[p]) * (p ? eh / 2 : eh));
-  }
   c.packet = av_packet_alloc();
-  c.sws = sws_getContext(ew, eh, AV_PIX_FMT_RGB24, ew, eh, AV_PIX_FMT_YUV420P,
-                         SWS_BILINEAR | SWS_ACCURATE_RND | SWS_BITEXACT, nullptr, nullptr, nullptr);
-  GEODRIVE_CHECK_INPUT(c.sws, path, ": colour conversion setup failed");
-  // Two spare zero rows: swscale's SIMD paths may read a few bytes past the last row.
+
   cv::Mat padded_storage(eh + 2, ew, CV_8UC3, cv::Scalar(0, 0, 0));
-  cv::Mat padded = padded_storage(cv::Rect(0, 0, ew, eh));
+  cv::Mat padded = padded_storage(cv::Rect(0, 0, ew, eh)).clone();
+  cv::Mat yuv;
   for (size_t i = 0; i < frames.size(); ++i) {
     frames[i].copyTo(padded(cv::Rect(0, 0, w, h)));
-    r = av_frame_make_writable(c.frame);
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": frame not writable");
-    const uint8_t* src[1] = {padded.data};
-    const int src_stride[1] = {static_cast<int>(padded.step[0])};
-    sws_scale(c.sws, src, src_stride, 0, eh, c.frame->data, c.frame->linesize);
+    // A fresh, fully zeroed frame each time (the encoder may keep a reference
+    // to the previous one, and uninitialised row padding would make the output
+    // depend on heap contents).
+    if (c.frame) av_frame_free(&c.frame);
+    c.frame = av_frame_alloc();
+    c.frame->format = AV_PIX_FMT_YUV420P;
+    c.frame->width = ew;
+    c.frame->height = eh;
+    r = av_frame_get_buffer(c.frame, 0);
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": frame allocation failed");
+    for (int p = 0; p < 3; ++p) {
+      std::memset(
+          c.frame->data[p], 0,
+          static_cast<size_t>(c.frame->linesize[p]) * (p ? eh / 2 : eh));
+    }
+    // RGB -> YUV 4:2:0 (BT.601, limited range) with OpenCV: deterministic and
+    // independent of buffer alignment (swscale picks SIMD paths by alignment).
+    cv::cvtColor(padded, yuv, cv::COLOR_RGB2YUV_I420);
+    const uint8_t* y = yuv.ptr<uint8_t>(0);
+    const uint8_t* u = y + static_cast<size_t>(ew) * eh;
+    const uint8_t* v = u + static_cast<size_t>(ew / 2) * (eh / 2);
+    for (int row = 0; row < eh; ++row) {
+      std::memcpy(
+          c.frame->data[0] + static_cast<size_t>(row) * c.frame->linesize[0],
+          y + static_cast<size_t>(row) * ew, ew);
+    }
+    for (int row = 0; row < eh / 2; ++row) {
+      std::memcpy(
+          c.frame->data[1] + static_cast<size_t>(row) * c.frame->linesize[1],
+          u + static_cast<size_t>(row) * (ew / 2), ew / 2);
+      std::memcpy(
+          c.frame->data[2] + static_cast<size_t>(row) * c.frame->linesize[2],
+          v + static_cast<size_t>(row) * (ew / 2), ew / 2);
+    }
     c.frame->pts = static_cast<int64_t>(i);
     r = avcodec_send_frame(c.codec, c.frame);
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding frame ", i, " failed (", AvError(r), ")");
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding frame ", i, " failed (",
+                         AvError(r), ")");
     Drain(c, stream, path);
   }
   avcodec_send_frame(c.codec, nullptr);
   Drain(c, stream, path);
   r = av_write_trailer(c.fmt);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot finish the mp4 (", AvError(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot finish the mp4 (", AvError(r),
+                       ")");
   avio_closep(&c.fmt->pb);
   c.io_open = false;
-  GEODRIVE_CHECK_INPUT(std::rename(tmp.c_str(), path.c_str()) == 0, path, ": rename failed");
+  GEODRIVE_CHECK_INPUT(std::rename(tmp.c_str(), path.c_str()) == 0, path,
+                       ": rename failed");
 }
 
 }  // namespace geodrive
