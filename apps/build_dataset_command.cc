@@ -11,6 +11,9 @@
 #include "geometry/status.h"
 
 #ifdef GEODRIVE_WITH_MPI
+// C API only (OpenMPI would otherwise pull in its deprecated C++ bindings).
+#define OMPI_SKIP_MPICXX 1
+#define MPICH_SKIP_MPICXX 1
 #include <mpi.h>
 #endif
 

@@ -1,0 +1,175 @@
+// `geodrive build-dataset` as a user runs it: kill -9 and resume, shards +
+// merge, mpirun -n 2, and the exit code of a run with failures. Every run must
+// give the same files as one uninterrupted single-process run.
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "tests/common/test_util.h"
+
+namespace geodrive {
+namespace {
+
+namespace fs = std::filesystem;
+using test::GeodriveBinary;
+using test::RunCommand;
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream os;
+  os << in.rdbuf();
+  return os.str();
+}
+
+std::map<std::string, std::string> OutputFiles(const std::string& out) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(out)) {
+    const std::string rel = fs::relative(e.path(), out).string();
+    if (!e.is_regular_file() || rel == "report.html") continue;
+    // Shard logs are merged into manifest.jsonl / failures.jsonl; compare
+    // those.
+    if (rel.find(".shard-") != std::string::npos) continue;
+    files[rel] = ReadAll(e.path().string());
+  }
+  return files;
+}
+
+const std::string& World() {
+  static const std::string dir = [] {
+    const std::string d = test::MakeTempDir("cli_build_world");
+    std::string log;
+    const int rc = RunCommand(
+        GeodriveBinary() + " synth --out " + d +
+            " --scenes 1 --seed 5 --size 800x450 --duration 6.5 --monst3r",
+        &log);
+    EXPECT_EQ(rc, 0) << log;
+    return d;
+  }();
+  return dir;
+}
+
+std::string BuildArgs(const std::string& out) {
+  return " build-dataset --dataroot " + World() + " --monst3r " + World() +
+         "/monst3r --out " + out + " --quiet";
+}
+
+const std::string& Reference() {
+  static const std::string out = [] {
+    const std::string d = test::MakeTempDir("cli_build_reference");
+    std::string log;
+    EXPECT_EQ(RunCommand(GeodriveBinary() + BuildArgs(d), &log), 0) << log;
+    return d;
+  }();
+  return out;
+}
+
+TEST(BuildDatasetCli, ReferenceRunBuildsEveryMonst3rClip) {
+  const std::string manifest = ReadAll(Reference() + "/manifest.jsonl");
+  EXPECT_EQ(std::count(manifest.begin(), manifest.end(), '\n'), 3)
+      << manifest;  // 0, 24, 48
+  EXPECT_TRUE(fs::exists(Reference() + "/report.html"));
+}
+
+TEST(BuildDatasetCli, KillMinus9AndResumeGivesIdenticalOutput) {
+  const std::string out = test::MakeTempDir("cli_build_killed");
+  const std::string pidfile = out + ".pid";
+  ASSERT_EQ(RunCommand(GeodriveBinary() + BuildArgs(out) +
+                       " > /dev/null 2>&1 & echo $! > " + pidfile),
+            0);
+  const std::string pid = ReadAll(pidfile);
+  // Wait until the first pair is committed (or the temporary folder of the
+  // second appears).
+  bool killed = false;
+  for (int i = 0; i < 600 && !killed; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    int committed = 0;
+    if (fs::exists(out + "/pairs")) {
+      for (const auto& e : fs::directory_iterator(out + "/pairs")) {
+        committed += e.path().filename().string().rfind(".tmp-", 0) != 0;
+      }
+    }
+    if (committed >= 1) {
+      RunCommand("kill -9 " + pid);
+      killed = true;
+    }
+  }
+  ASSERT_TRUE(killed) << "the build never committed a pair";
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  size_t pairs_before = 0;
+  for (const auto& e : fs::directory_iterator(out + "/pairs")) {
+    pairs_before += e.path().filename().string().rfind(".tmp-", 0) != 0;
+  }
+  std::printf("killed after %zu committed pair(s); resuming\n", pairs_before);
+  EXPECT_LT(pairs_before, 3u) << "kill came too late to test resuming";
+  std::string log;
+  ASSERT_EQ(RunCommand(GeodriveBinary() + BuildArgs(out), &log), 0) << log;
+  EXPECT_TRUE(OutputFiles(out) == OutputFiles(Reference()));
+}
+
+TEST(BuildDatasetCli, ShardsAndMergeGiveIdenticalOutput) {
+  const std::string out = test::MakeTempDir("cli_build_shards");
+  std::string log;
+  ASSERT_EQ(
+      RunCommand(GeodriveBinary() + BuildArgs(out) + " --shard 0/2", &log), 0)
+      << log;
+  ASSERT_EQ(
+      RunCommand(GeodriveBinary() + BuildArgs(out) + " --shard 1/2", &log), 0)
+      << log;
+  ASSERT_EQ(
+      RunCommand(GeodriveBinary() + " build-dataset --merge " + out, &log), 0)
+      << log;
+  EXPECT_TRUE(OutputFiles(out) == OutputFiles(Reference()));
+}
+
+#ifdef GEODRIVE_WITH_MPI
+TEST(BuildDatasetCli, MpirunTwoRanksGivesIdenticalOutput) {
+  const std::string out = test::MakeTempDir("cli_build_mpi");
+  std::string log;
+  ASSERT_EQ(RunCommand("mpirun --allow-run-as-root --oversubscribe -n 2 " +
+                           GeodriveBinary() + BuildArgs(out),
+                       &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("2 MPI ranks"), std::string::npos) << log;
+  EXPECT_TRUE(OutputFiles(out) == OutputFiles(Reference()));
+}
+#endif
+
+TEST(BuildDatasetCli, FailuresGiveExitCodeThreeAndAreRecorded) {
+  const std::string root = test::MakeTempDir("cli_build_bad_world");
+  fs::copy(World(), root, fs::copy_options::recursive);
+  fs::remove(root + "/monst3r/scene-0001_0024/pred_traj.txt");
+  const std::string out = test::MakeTempDir("cli_build_bad_out");
+  std::string log;
+  const int rc = RunCommand(GeodriveBinary() + " build-dataset --dataroot " +
+                                root + " --monst3r " + root +
+                                "/monst3r --out " + out + " --quiet",
+                            &log);
+  EXPECT_EQ(rc, 3) << log;
+  EXPECT_NE(log.find("completed with failures"), std::string::npos) << log;
+  const std::string failures = ReadAll(out + "/failures.jsonl");
+  EXPECT_NE(failures.find("scene-0001_0024"), std::string::npos) << failures;
+  EXPECT_NE(failures.find("pred_traj.txt"), std::string::npos) << failures;
+  const std::string manifest = ReadAll(out + "/manifest.jsonl");
+  EXPECT_EQ(std::count(manifest.begin(), manifest.end(), '\n'), 2) << manifest;
+}
+
+TEST(BuildDatasetCli, BadArgumentsExitTwoWithOneLine) {
+  std::string log;
+  EXPECT_EQ(
+      RunCommand(GeodriveBinary() +
+                     " build-dataset --dataroot /nonexistent --out /tmp/x",
+                 &log),
+      2);
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+  EXPECT_NE(log.find("/nonexistent"), std::string::npos) << log;
+}
+
+}  // namespace
+}  // namespace geodrive
