@@ -739,11 +739,12 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     mine.resize(opt.max_clips);
   summary.clips_total = static_cast<int>(mine.size());
 
-  // Stale temporary folders of a killed run are removed; finished pairs are
-  // skipped.
-  for (const auto& e : fs::directory_iterator(opt.out + "/pairs")) {
-    if (e.path().filename().string().rfind(".tmp-", 0) == 0)
-      fs::remove_all(e.path());
+  // Stale temporary folders of a killed run are removed (only this shard's own
+  // clips: other shards or MPI ranks may be writing theirs right now); finished
+  // pairs are skipped.
+  for (const auto& c : mine) {
+    std::error_code ec;
+    fs::remove_all(opt.out + "/pairs/.tmp-" + c.id, ec);
   }
   std::vector<const Clip*> todo;
   for (const auto& c : mine) {

@@ -31,7 +31,7 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(out)) {
     const std::string rel = fs::relative(e.path(), out).string();
-    if (!e.is_regular_file() || rel == "report.html") continue;
+    if (!e.is_regular_file() || rel == "report.html" || rel == ".complete") continue;
     // Shard logs are merged into manifest.jsonl / failures.jsonl; compare
     // those.
     if (rel.find(".shard-") != std::string::npos) continue;
@@ -41,16 +41,15 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
 }
 
 const std::string& World() {
-  static const std::string dir = [] {
-    const std::string d = test::MakeTempDir("cli_build_world");
-    std::string log;
-    const int rc = RunCommand(
-        GeodriveBinary() + " synth --out " + d +
-            " --scenes 1 --seed 5 --size 800x450 --duration 6.5 --monst3r",
-        &log);
-    EXPECT_EQ(rc, 0) << log;
-    return d;
-  }();
+  static const std::string dir =
+      test::SharedFixtureDir("cli_build_world", [](const std::string& d) {
+        std::string log;
+        const int rc = RunCommand(
+            GeodriveBinary() + " synth --out " + d +
+                " --scenes 1 --seed 5 --size 800x450 --duration 6.5 --monst3r",
+            &log);
+        EXPECT_EQ(rc, 0) << log;
+      });
   return dir;
 }
 
@@ -60,12 +59,11 @@ std::string BuildArgs(const std::string& out) {
 }
 
 const std::string& Reference() {
-  static const std::string out = [] {
-    const std::string d = test::MakeTempDir("cli_build_reference");
-    std::string log;
-    EXPECT_EQ(RunCommand(GeodriveBinary() + BuildArgs(d), &log), 0) << log;
-    return d;
-  }();
+  static const std::string out =
+      test::SharedFixtureDir("cli_build_reference", [](const std::string& d) {
+        std::string log;
+        EXPECT_EQ(RunCommand(GeodriveBinary() + BuildArgs(d), &log), 0) << log;
+      });
   return out;
 }
 

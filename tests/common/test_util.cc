@@ -1,9 +1,14 @@
 #include "tests/common/test_util.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <array>
 #include <cstdio>
 #include <filesystem>
-#include <sys/wait.h>
+#include <fstream>
 
 namespace geodrive {
 namespace test {
@@ -15,9 +20,44 @@ std::mt19937& Rng() {
 
 std::string MakeTempDir(const std::string& name) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::path(GEODRIVE_BINARY_DIR) / "test_tmp" / name;
+  const fs::path dir = fs::path(GEODRIVE_BINARY_DIR) / "test_tmp" /
+                       (name + "-" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
+  return dir.string();
+}
+
+std::string SharedFixtureDir(
+    const std::string& name,
+    const std::function<void(const std::string&)>& build) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(GEODRIVE_BINARY_DIR) / "test_tmp" / "shared";
+  fs::create_directories(root);
+  const fs::path dir = root / name;
+  const std::string lock_path = (root / (name + ".lock")).string();
+  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT, 0644);
+  if (fd >= 0) ::flock(fd, LOCK_EX);
+  // The fixture belongs to this test binary build: key it by the executable's
+  // mtime.
+  std::error_code ec;
+  const auto stamp = std::to_string(
+      fs::last_write_time("/proc/self/exe", ec).time_since_epoch().count());
+  const fs::path marker = dir / ".complete";
+  std::string have;
+  if (fs::exists(marker)) {
+    std::ifstream in(marker);
+    std::getline(in, have);
+  }
+  if (have != stamp) {
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    build(dir.string());
+    std::ofstream(marker) << stamp << "\n";
+  }
+  if (fd >= 0) {
+    ::flock(fd, LOCK_UN);
+    ::close(fd);
+  }
   return dir.string();
 }
 
@@ -25,7 +65,9 @@ std::string RealDataPath(const std::string& relative) {
   return std::string(GEODRIVE_SHARED_DATA_DIR) + "/real/" + relative;
 }
 
-std::string GeodriveBinary() { return std::string(GEODRIVE_BINARY_DIR) + "/apps/geodrive"; }
+std::string GeodriveBinary() {
+  return std::string(GEODRIVE_BINARY_DIR) + "/apps/geodrive";
+}
 
 int RunCommand(const std::string& command, std::string* output) {
   const std::string full = command + " 2>&1";
@@ -34,14 +76,16 @@ int RunCommand(const std::string& command, std::string* output) {
   std::array<char, 4096> buffer;
   std::string text;
   size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) text.append(buffer.data(), n);
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    text.append(buffer.data(), n);
   const int status = pclose(pipe);
   if (output) *output = text;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 bool PythonHasModule(const std::string& module) {
-  return RunCommand(std::string(kDebianPython) + " -c 'import " + module + "'") == 0;
+  return RunCommand(std::string(kDebianPython) + " -c 'import " + module +
+                    "'") == 0;
 }
 
 }  // namespace test

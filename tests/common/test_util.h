@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <cstdlib>
+#include <functional>
 #include <random>
 #include <string>
 
@@ -17,24 +18,37 @@ constexpr uint32_t kTestSeed = 20250528;
 // A generator re-seeded with kTestSeed before every test.
 std::mt19937& Rng();
 
-// A fresh empty temporary directory for this test (removed at process exit is NOT guaranteed;
-// it lives under the build tree's test_tmp/).
+// A fresh empty temporary directory for this test process:
+// test_tmp/<name>-<pid> under the build tree (not removed at exit). Unique per
+// process, so `ctest -j` runs cannot collide.
 std::string MakeTempDir(const std::string& name);
+
+// A directory shared by every test process of this build
+// (test_tmp/shared/<name>): the first caller runs `build(dir)` under an
+// exclusive file lock and marks it complete; later callers (in this or other
+// processes, e.g. under `ctest -j`) wait for the lock and reuse it. A rebuilt
+// test binary rebuilds the fixture.
+std::string SharedFixtureDir(
+    const std::string& name,
+    const std::function<void(const std::string&)>& build);
 
 // Path to ../shared/data/real/<relative>.
 std::string RealDataPath(const std::string& relative);
 // Path of the built `geodrive` binary.
 std::string GeodriveBinary();
-// Runs a shell command, returns its exit code; captures stdout+stderr into *output if non-null.
+// Runs a shell command, returns its exit code; captures stdout+stderr into
+// *output if non-null.
 int RunCommand(const std::string& command, std::string* output = nullptr);
 // The interpreter that sees Debian's python3-* packages.
 constexpr const char* kDebianPython = "/usr/bin/python3";
 // True if `/usr/bin/python3 -c "import <module>"` succeeds.
 bool PythonHasModule(const std::string& module);
 
-// GMock matcher: two Eigen matrices of equal shape agree elementwise within `tol`.
+// GMock matcher: two Eigen matrices of equal shape agree elementwise within
+// `tol`.
 MATCHER_P2(EigenNear, expected, tol, "") {
-  if (arg.rows() != expected.rows() || arg.cols() != expected.cols()) return false;
+  if (arg.rows() != expected.rows() || arg.cols() != expected.cols())
+    return false;
   const double err = (arg - expected).cwiseAbs().maxCoeff();
   *result_listener << "max abs difference " << err;
   return err <= tol;
@@ -43,16 +57,19 @@ MATCHER_P2(EigenNear, expected, tol, "") {
 }  // namespace test
 }  // namespace geodrive
 
-// Skips the current test with a visible message when Debian's python lacks `module`, unless the
-// environment sets GEODRIVE_REQUIRE_PYTHON_CHECKS=1 (CI), in which case the test fails instead.
-#define GEODRIVE_REQUIRE_PYTHON_MODULE(module)                                                 \
-  do {                                                                                         \
-    if (!::geodrive::test::PythonHasModule(module)) {                                          \
-      if (std::getenv("GEODRIVE_REQUIRE_PYTHON_CHECKS") != nullptr) {                          \
-        FAIL() << "python module '" << module << "' missing and GEODRIVE_REQUIRE_PYTHON_CHECKS " \
-                  "is set";                                                                    \
-      }                                                                                        \
-      GTEST_SKIP() << "SKIPPED: /usr/bin/python3 has no '" << module                           \
-                   << "' (install python3-" << module << " to run this cross-check)";          \
-    }                                                                                          \
+// Skips the current test with a visible message when Debian's python lacks
+// `module`, unless the environment sets GEODRIVE_REQUIRE_PYTHON_CHECKS=1 (CI),
+// in which case the test fails instead.
+#define GEODRIVE_REQUIRE_PYTHON_MODULE(module)                        \
+  do {                                                                \
+    if (!::geodrive::test::PythonHasModule(module)) {                 \
+      if (std::getenv("GEODRIVE_REQUIRE_PYTHON_CHECKS") != nullptr) { \
+        FAIL() << "python module '" << module                         \
+               << "' missing and GEODRIVE_REQUIRE_PYTHON_CHECKS "     \
+                  "is set";                                           \
+      }                                                               \
+      GTEST_SKIP() << "SKIPPED: /usr/bin/python3 has no '" << module  \
+                   << "' (install python3-" << module                 \
+                   << " to run this cross-check)";                    \
+    }                                                                 \
   } while (0)

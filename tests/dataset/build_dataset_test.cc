@@ -1,6 +1,7 @@
-// The dataset builder on the synthetic world: every clip becomes a pair, outputs validate against
-// the schemas with a real validator, the condition video agrees with GT in static regions, metric
-// poses match the truth, bad clips are isolated, and runs are deterministic.
+// The dataset builder on the synthetic world: every clip becomes a pair,
+// outputs validate against the schemas with a real validator, the condition
+// video agrees with GT in static regions, metric poses match the truth, bad
+// clips are isolated, and runs are deterministic.
 
 #include "dataset/build_dataset.h"
 
@@ -30,20 +31,20 @@ std::string ReadAll(const std::string& path) {
   return os.str();
 }
 
-// One scene, 800x450, 8.5 s: 102 CAM_FRONT frames, MonST3R clips at 0, 24, 48, 72.
+// One scene, 800x450, 8.5 s: 102 CAM_FRONT frames, MonST3R clips at 0, 24,
+// 48, 72.
 const std::string& World() {
-  static const std::string root = [] {
-    const std::string dir = test::MakeTempDir("build_world");
-    SyntheticDatasetOptions o;
-    o.num_scenes = 1;
-    o.seed = 21;
-    o.image_width = 800;
-    o.image_height = 450;
-    o.scene_duration_s = 8.5;
-    o.write_monst3r = true;
-    WriteSyntheticDataset(o, dir);
-    return dir;
-  }();
+  static const std::string root =
+      test::SharedFixtureDir("build_world", [](const std::string& dir) {
+        SyntheticDatasetOptions o;
+        o.num_scenes = 1;
+        o.seed = 21;
+        o.image_width = 800;
+        o.image_height = 450;
+        o.scene_duration_s = 8.5;
+        o.write_monst3r = true;
+        WriteSyntheticDataset(o, dir);
+      });
   return root;
 }
 
@@ -56,25 +57,25 @@ BuildDatasetOptions Options(const std::string& out) {
   return o;
 }
 
-// Everything a build writes that must be reproducible (report.html holds timings: excluded).
+// Everything a build writes that must be reproducible (report.html holds
+// timings: excluded).
 std::map<std::string, std::string> OutputFiles(const std::string& out) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(out)) {
     if (!e.is_regular_file()) continue;
     const std::string rel = fs::relative(e.path(), out).string();
-    if (rel == "report.html") continue;
+    if (rel == "report.html" || rel == ".complete") continue;  // timings; fixture marker
     files[rel] = ReadAll(e.path().string());
   }
   return files;
 }
 
 const std::string& FullBuild() {
-  static const std::string out = [] {
-    const std::string dir = test::MakeTempDir("build_full");
-    const BuildDatasetSummary s = BuildDataset(Options(dir));
-    std::printf("full build: %s\n", s.BriefReport().c_str());
-    return dir;
-  }();
+  static const std::string out =
+      test::SharedFixtureDir("build_full", [](const std::string& dir) {
+        const BuildDatasetSummary s = BuildDataset(Options(dir));
+        std::printf("full build: %s\n", s.BriefReport().c_str());
+      });
   return out;
 }
 
@@ -84,9 +85,10 @@ TEST(BuildDataset, EveryMonst3rClipBecomesAPair) {
   ASSERT_EQ(manifest.size(), 4u);  // clips 0, 24, 48, 72 have MonST3R folders
   EXPECT_EQ(ReadAll(out + "/failures.jsonl"), "");
   for (const auto& e : manifest) {
-    for (const char* f : {"gt.mp4", "cond.mp4", "first_frame.png", "boxes.json", "meta.json",
-                          "preview.png"}) {
-      EXPECT_TRUE(fs::exists(out + "/" + e.pair_dir + "/" + f)) << e.pair_dir << "/" << f;
+    for (const char* f : {"gt.mp4", "cond.mp4", "first_frame.png", "boxes.json",
+                          "meta.json", "preview.png"}) {
+      EXPECT_TRUE(fs::exists(out + "/" + e.pair_dir + "/" + f))
+          << e.pair_dir << "/" << f;
     }
     EXPECT_EQ(e.num_frames, 25);
     EXPECT_EQ(e.pose_units, "metres");
@@ -97,7 +99,8 @@ TEST(BuildDataset, EveryMonst3rClipBecomesAPair) {
 TEST(BuildDataset, OutputsValidateAgainstSchemas) {
   GEODRIVE_REQUIRE_PYTHON_MODULE("jsonschema");
   const std::string out = FullBuild();
-  const std::string py = std::string(test::kDebianPython) + " " GEODRIVE_SOURCE_DIR
+  const std::string py = std::string(test::kDebianPython) +
+                         " " GEODRIVE_SOURCE_DIR
                          "/tests/dataset/validate_json.py ";
   const std::string schema = GEODRIVE_SOURCE_DIR "/data_schema/";
   std::string metas, boxes, log;
@@ -105,18 +108,24 @@ TEST(BuildDataset, OutputsValidateAgainstSchemas) {
     metas += " " + out + "/" + e.pair_dir + "/meta.json";
     boxes += " " + out + "/" + e.pair_dir + "/boxes.json";
   }
-  EXPECT_EQ(test::RunCommand(py + schema + "pair_meta.schema.json" + metas, &log), 0) << log;
-  EXPECT_EQ(test::RunCommand(py + schema + "boxes.schema.json" + boxes, &log), 0) << log;
-  EXPECT_EQ(test::RunCommand(py + "--jsonl " + schema + "manifest_line.schema.json " + out +
-                                 "/manifest.jsonl",
-                             &log),
+  EXPECT_EQ(
+      test::RunCommand(py + schema + "pair_meta.schema.json" + metas, &log), 0)
+      << log;
+  EXPECT_EQ(test::RunCommand(py + schema + "boxes.schema.json" + boxes, &log),
             0)
+      << log;
+  EXPECT_EQ(
+      test::RunCommand(py + "--jsonl " + schema + "manifest_line.schema.json " +
+                           out + "/manifest.jsonl",
+                       &log),
+      0)
       << log;
 }
 
-// Condition frames vs GT in static regions (rendered pixels outside every vehicle box): frame 0
-// is a re-render of its own pointmap (high PSNR); later frames show the frame-0 cloud from the
-// moving camera, where disocclusions and splat gaps lower it.
+// Condition frames vs GT in static regions (rendered pixels outside every
+// vehicle box): frame 0 is a re-render of its own pointmap (high PSNR); later
+// frames show the frame-0 cloud from the moving camera, where disocclusions and
+// splat gaps lower it.
 TEST(BuildDataset, ConditionAgreesWithGroundTruthInStaticRegions) {
   const std::string out = FullBuild();
   for (const auto& e : ReadManifest(out + "/manifest.jsonl")) {
@@ -125,8 +134,9 @@ TEST(BuildDataset, ConditionAgreesWithGroundTruthInStaticRegions) {
     std::printf("%s PSNR(static) per frame:", m.clip_id.c_str());
     double sum = 0;
     for (double p : m.quality.psnr_static) std::printf(" %.1f", p), sum += p;
-    std::printf("  (mean %.2f dB, coverage frame0 %.3f frame24 %.3f)\n", sum / 25,
-                m.quality.coverage.front(), m.quality.coverage.back());
+    std::printf("  (mean %.2f dB, coverage frame0 %.3f frame24 %.3f)\n",
+                sum / 25, m.quality.coverage.front(),
+                m.quality.coverage.back());
     EXPECT_GT(m.quality.psnr_static.front(), 25.0);
     for (double p : m.quality.psnr_static) EXPECT_GT(p, 14.0);
     EXPECT_GT(sum / 25, 18.0);
@@ -134,7 +144,8 @@ TEST(BuildDataset, ConditionAgreesWithGroundTruthInStaticRegions) {
   }
 }
 
-// With LiDAR present the pair's poses are metric: within 1 % of the true relative camera motion.
+// With LiDAR present the pair's poses are metric: within 1 % of the true
+// relative camera motion.
 TEST(BuildDataset, MetricPosesWithinOnePercentOfTruth) {
   const std::string out = FullBuild();
   NuscenesOptions no;
@@ -143,18 +154,26 @@ TEST(BuildDataset, MetricPosesWithinOnePercentOfTruth) {
   for (const auto& e : ReadManifest(out + "/manifest.jsonl")) {
     const PairMeta m = ReadPairMeta(out + "/" + e.pair_dir);
     ASSERT_EQ(m.pose_units, "metres");
-    const int32_t sd0 = nusc.Find("sample_data", m.frames.front().sample_data_token);
+    const int32_t sd0 =
+        nusc.Find("sample_data", m.frames.front().sample_data_token);
     const Rigid3d cam0_from_global = nusc.WorldFromSensor(sd0).Inverse();
     double worst = 0, length = 0;
     for (size_t i = 0; i < m.frames.size(); ++i) {
-      const int32_t sd = nusc.Find("sample_data", m.frames[i].sample_data_token);
+      const int32_t sd =
+          nusc.Find("sample_data", m.frames[i].sample_data_token);
       const Rigid3d truth = cam0_from_global * nusc.WorldFromSensor(sd);
       length = std::max(length, truth.translation.norm());
-      worst = std::max(worst, (m.world_from_cam[i].translation - truth.translation).norm());
-      EXPECT_LT(RotationDistanceDeg(m.world_from_cam[i].rotation, truth.rotation), 0.1);
+      worst = std::max(
+          worst, (m.world_from_cam[i].translation - truth.translation).norm());
+      EXPECT_LT(
+          RotationDistanceDeg(m.world_from_cam[i].rotation, truth.rotation),
+          0.1);
     }
-    std::printf("%s: max position error %.4f m over %.2f m of travel (%.3f %%), scale %s\n",
-                m.clip_id.c_str(), worst, length, 100 * worst / length, m.scale_report.c_str());
+    std::printf(
+        "%s: max position error %.4f m over %.2f m of travel (%.3f %%), scale "
+        "%s\n",
+        m.clip_id.c_str(), worst, length, 100 * worst / length,
+        m.scale_report.c_str());
     EXPECT_LT(worst, 0.01 * length);
   }
 }
@@ -166,7 +185,8 @@ TEST(BuildDataset, ThreadsAndResumeGiveIdenticalOutput) {
   BuildDatasetOptions o = Options(two);
   o.threads = 2;
   BuildDataset(o);
-  EXPECT_TRUE(OutputFiles(two) == OutputFiles(full)) << "2-thread build differs";
+  EXPECT_TRUE(OutputFiles(two) == OutputFiles(full))
+      << "2-thread build differs";
   // Interrupted after one pair, then resumed.
   const std::string resumed = test::MakeTempDir("build_resumed");
   o = Options(resumed);
@@ -177,11 +197,13 @@ TEST(BuildDataset, ThreadsAndResumeGiveIdenticalOutput) {
   const BuildDatasetSummary second = BuildDataset(o);
   EXPECT_EQ(second.skipped_existing, 1);
   EXPECT_EQ(second.built, 3);
-  EXPECT_TRUE(OutputFiles(resumed) == OutputFiles(full)) << "resumed build differs";
+  EXPECT_TRUE(OutputFiles(resumed) == OutputFiles(full))
+      << "resumed build differs";
 }
 
 TEST(BuildDataset, BadClipsAreIsolatedAndRecorded) {
-  // A copy of the world with one corrupted MonST3R depth file and one missing camera image.
+  // A copy of the world with one corrupted MonST3R depth file and one missing
+  // camera image.
   const std::string root = test::MakeTempDir("build_bad_world");
   fs::copy(World(), root, fs::copy_options::recursive);
   {
@@ -209,10 +231,12 @@ TEST(BuildDataset, BadClipsAreIsolatedAndRecorded) {
   const auto failures = ReadFailures(out + "/failures.jsonl");
   ASSERT_EQ(failures.size(), 2u);
   EXPECT_EQ(failures[0].clip_id, "scene-0001_0000");
-  EXPECT_NE(failures[0].error.find("frame_0003.npy"), std::string::npos) << failures[0].error;
+  EXPECT_NE(failures[0].error.find("frame_0003.npy"), std::string::npos)
+      << failures[0].error;
   EXPECT_EQ(failures[1].clip_id, "scene-0001_0048");
   EXPECT_EQ(failures[1].stage, "gt");
-  EXPECT_NE(failures[1].error.find(fs::path(missing).filename().string()), std::string::npos)
+  EXPECT_NE(failures[1].error.find(fs::path(missing).filename().string()),
+            std::string::npos)
       << failures[1].error;
   EXPECT_EQ(ReadManifest(out + "/manifest.jsonl").size(), 2u);
   EXPECT_FALSE(fs::exists(out + "/pairs/scene-0001_0000"));
@@ -229,8 +253,9 @@ TEST(BuildDataset, LidarGeometryNeedsNoMonst3r) {
   const PairMeta m = ReadPairMeta(out + "/pairs/scene-0001_0006");
   EXPECT_EQ(m.geometry_source, "lidar");
   EXPECT_EQ(m.pose_units, "metres");
-  std::printf("lidar geometry: coverage frame0 %.3f, PSNR(static) frame0 %.1f dB\n",
-              m.quality.coverage.front(), m.quality.psnr_static.front());
+  std::printf(
+      "lidar geometry: coverage frame0 %.3f, PSNR(static) frame0 %.1f dB\n",
+      m.quality.coverage.front(), m.quality.psnr_static.front());
   EXPECT_GT(m.quality.coverage.front(), 0.02);
 }
 

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -85,7 +86,28 @@ void CorruptSweeps(const std::string& root, uint32_t seed) {
 }
 
 const World& NoiseFreeWorld() {
-  static const World w = MakeWorld("lidar_align_exact", 0.0, 0.0);
+  // Shared between test processes: the world is generated once (under a lock)
+  // and reused.
+  static const World w = [] {
+    World out;
+    out.root =
+        test::SharedFixtureDir("lidar_align_exact", [](const std::string& dir) {
+          SyntheticDatasetOptions o;
+          o.num_scenes = 1;
+          o.seed = 11;
+          o.image_width = 800;
+          o.image_height = 450;
+          o.scene_duration_s = 4.5;
+          o.write_monst3r = true;
+          WriteSyntheticDataset(o, dir);
+        });
+    for (const auto& e : fs::directory_iterator(out.root + "/monst3r")) {
+      out.summary.monst3r_clip_ids.push_back(e.path().filename().string());
+    }
+    std::sort(out.summary.monst3r_clip_ids.begin(),
+              out.summary.monst3r_clip_ids.end());
+    return out;
+  }();
   return w;
 }
 
