@@ -195,6 +195,12 @@ CommandRunner Setup(CLI::App& app) {
          "--fps", o.fps,
          "Frame rate written in the videos (12 Hz clips as 10 fps, as Vista)")
       ->capture_default_str();
+  app.add_option("--x264-preset", o.video_preset,
+                 "x264 preset of the videos (ultrafast ... veryslow)")
+      ->capture_default_str();
+  app.add_option("--crf", o.video_crf,
+                 "x264 constant rate factor (0 = lossless)")
+      ->capture_default_str();
   app.add_flag("--lossless-frames", o.lossless_frames,
                "Also write PNG frame folders");
   app.add_option(

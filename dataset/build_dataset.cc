@@ -103,6 +103,8 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   j["resize_mode"] = resize_mode;
   j["fps"] = fps;
   j["lossless_frames"] = lossless_frames;
+  j["video_preset"] = video_preset;
+  j["video_crf"] = video_crf;
   j["min_confidence"] = min_confidence;
   j["min_depth_m"] = min_depth_m;
   j["max_depth_m"] = max_depth_m;
@@ -585,6 +587,8 @@ PairMeta BuildPair(const ClipContext& ctx,
   timer.Run("encode", [&] {
     H264Options vo;
     vo.fps = opt.fps;
+    vo.preset = opt.video_preset;
+    vo.crf = opt.video_crf;
     WriteH264Mp4(tmp_dir + "/gt.mp4", gt, vo);
     WriteH264Mp4(tmp_dir + "/cond.mp4", cond, vo);
     if (opt.lossless_frames) {
