@@ -13,6 +13,7 @@
 
 #include "dataset/clips.h"
 #include "dataset/synthetic_dataset.h"
+#include "geometry/npy.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/status.h"
 #include "tests/common/test_util.h"
@@ -186,6 +187,38 @@ TEST(LidarAlignmentSynthetic, FramesWithoutLidarAreSkippedWithReason) {
   std::vector<int32_t> frames = ClipFrames(nusc, id);
   frames.pop_back();
   EXPECT_THROW(FitClipLidarScale(nusc, frames, folder, {}), InputError);
+}
+
+// No overlap between LiDAR and valid depth (every MonST3R depth invalid): every
+// frame is skipped with a reason, the clip fit fails with a message, nothing is
+// thrown.
+TEST(LidarAlignmentSynthetic, NoValidDepthIsReportedNotThrown) {
+  const World& w = NoiseFreeWorld();
+  const std::string id = w.summary.monst3r_clip_ids.front();
+  const std::string copy = test::MakeTempDir("lidar_align_no_depth");
+  fs::copy(w.root + "/monst3r/" + id, copy, fs::copy_options::recursive);
+  for (int i = 0; i < 25; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "/frame_%04d.npy", i);
+    NpyArray depth = ReadNpy(copy + name);
+    float* d = depth.MutableData<float>();
+    for (int64_t k = 0; k < depth.NumElements(); ++k)
+      d[k] = 0.0f;  // MonST3R: depth > 0 valid
+    WriteNpy(copy + name, depth);
+  }
+  NuscenesOptions no;
+  no.dataroot = w.root;
+  const Nuscenes nusc(no);
+  const ClipScaleReport r = FitClipLidarScale(nusc, ClipFrames(nusc, id),
+                                              Monst3rFolder::Open(copy), {});
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("too few valid depth pairs"), std::string::npos)
+      << r.message;
+  for (const auto& f : r.frames) {
+    EXPECT_FALSE(f.used);
+    EXPECT_NE(f.skip_reason.find("too few"), std::string::npos)
+        << f.skip_reason;
+  }
 }
 
 }  // namespace
