@@ -31,7 +31,8 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(out)) {
     const std::string rel = fs::relative(e.path(), out).string();
-    if (!e.is_regular_file() || rel == "report.html" || rel == ".complete") continue;
+    if (!e.is_regular_file() || rel == "report.html" || rel == ".complete")
+      continue;
     // Shard logs are merged into manifest.jsonl / failures.jsonl; compare
     // those.
     if (rel.find(".shard-") != std::string::npos) continue;
@@ -105,6 +106,48 @@ TEST(BuildDatasetCli, KillMinus9AndResumeGivesIdenticalOutput) {
   }
   std::printf("killed after %zu committed pair(s); resuming\n", pairs_before);
   EXPECT_LT(pairs_before, 3u) << "kill came too late to test resuming";
+  std::string log;
+  ASSERT_EQ(RunCommand(GeodriveBinary() + BuildArgs(out), &log), 0) << log;
+  EXPECT_TRUE(OutputFiles(out) == OutputFiles(Reference()));
+}
+
+// SIGTERM stops cleanly after the current clip (exit 130, no temporary folder
+// left) and a rerun completes to the same output.
+TEST(BuildDatasetCli, SigtermStopsCleanlyAndResumes) {
+  const std::string out = test::MakeTempDir("cli_build_sigterm");
+  const std::string pidfile = out + ".pid", rcfile = out + ".rc";
+  // The subshell's own output is redirected too, so RunCommand does not wait
+  // for it.
+  ASSERT_EQ(
+      RunCommand("(" + GeodriveBinary() + BuildArgs(out) + "; echo $? > " +
+                 rcfile + ") > /dev/null 2>&1 & echo $! > " + pidfile),
+      0);
+  bool signalled = false;
+  for (int i = 0; i < 600 && !signalled; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (fs::exists(out + "/pairs") && !fs::is_empty(out + "/pairs")) {
+      // The background subshell's child is the builder.
+      RunCommand("pkill -TERM -P " + ReadAll(pidfile));
+      signalled = true;
+    }
+  }
+  ASSERT_TRUE(signalled);
+  for (int i = 0; i < 600 && !fs::exists(rcfile); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const std::string rc = ReadAll(rcfile);
+  int committed = 0, temporary = 0;
+  for (const auto& e : fs::directory_iterator(out + "/pairs")) {
+    (e.path().filename().string().rfind(".tmp-", 0) == 0 ? temporary
+                                                         : committed)++;
+  }
+  std::printf(
+      "SIGTERM: exit %s, %d pair(s) committed, %d temporary folder(s)\n",
+      rc.substr(0, rc.size() - 1).c_str(), committed, temporary);
+  EXPECT_EQ(temporary, 0);
+  if (committed < 3)
+    EXPECT_EQ(rc, "130\n");  // stopped early: "interrupted, rerun to resume"
   std::string log;
   ASSERT_EQ(RunCommand(GeodriveBinary() + BuildArgs(out), &log), 0) << log;
   EXPECT_TRUE(OutputFiles(out) == OutputFiles(Reference()));

@@ -64,7 +64,8 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
   for (const auto& e : fs::recursive_directory_iterator(out)) {
     if (!e.is_regular_file()) continue;
     const std::string rel = fs::relative(e.path(), out).string();
-    if (rel == "report.html" || rel == ".complete") continue;  // timings; fixture marker
+    if (rel == "report.html" || rel == ".complete")
+      continue;  // timings; fixture marker
     files[rel] = ReadAll(e.path().string());
   }
   return files;
@@ -242,14 +243,19 @@ TEST(BuildDataset, BadClipsAreIsolatedAndRecorded) {
   EXPECT_FALSE(fs::exists(out + "/pairs/scene-0001_0000"));
 }
 
-TEST(BuildDataset, LidarGeometryNeedsNoMonst3r) {
+// Without MonST3R every clip of the dataset (stride 6: 13 clips) becomes a
+// pair.
+TEST(BuildDataset, LidarGeometryNeedsNoMonst3rAndBuildsEveryClip) {
   const std::string out = test::MakeTempDir("build_lidar");
   BuildDatasetOptions o = Options(out);
   o.monst3r_root.clear();
   o.geometry = "lidar";
-  o.clips = {"scene-0001_0006"};
+  o.threads = 2;
   const BuildDatasetSummary s = BuildDataset(o);
-  ASSERT_EQ(s.built, 1) << s.BriefReport() << ReadAll(out + "/failures.jsonl");
+  std::printf("lidar geometry: %s\n", s.BriefReport().c_str());
+  EXPECT_EQ(s.clips_total, 13);
+  ASSERT_EQ(s.built, s.clips_total) << ReadAll(out + "/failures.jsonl");
+  EXPECT_EQ(ReadManifest(out + "/manifest.jsonl").size(), 13u);
   const PairMeta m = ReadPairMeta(out + "/pairs/scene-0001_0006");
   EXPECT_EQ(m.geometry_source, "lidar");
   EXPECT_EQ(m.pose_units, "metres");
@@ -257,6 +263,24 @@ TEST(BuildDataset, LidarGeometryNeedsNoMonst3r) {
       "lidar geometry: coverage frame0 %.3f, PSNR(static) frame0 %.1f dB\n",
       m.quality.coverage.front(), m.quality.psnr_static.front());
   EXPECT_GT(m.quality.coverage.front(), 0.02);
+}
+
+// The released pipeline's preset (soft splatting at 288x512, x2 upsample, frame
+// 0 = real image).
+TEST(BuildDataset, GeodriveCompatPresetBuilds) {
+  const std::string out = test::MakeTempDir("build_compat");
+  BuildDatasetOptions o = Options(out);
+  o.preset = "geodrive-compat";
+  o.clips = {"scene-0001_0024"};
+  const BuildDatasetSummary s = BuildDataset(o);
+  ASSERT_EQ(s.built, 1) << ReadAll(out + "/failures.jsonl");
+  const PairMeta m = ReadPairMeta(out + "/pairs/scene-0001_0024");
+  EXPECT_EQ(m.preset, "geodrive-compat");
+  // Frame 0 is the real image: its static-region PSNR is that of the video, not
+  // of a render.
+  std::printf("geodrive-compat: PSNR(static) frame0 %.1f dB frame24 %.1f dB\n",
+              m.quality.psnr_static.front(), m.quality.psnr_static.back());
+  EXPECT_GT(m.quality.psnr_static.front(), 35.0);
 }
 
 TEST(BuildDataset, BadOptionsAreInputErrors) {
