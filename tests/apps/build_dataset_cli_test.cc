@@ -146,8 +146,9 @@ TEST(BuildDatasetCli, SigtermStopsCleanlyAndResumes) {
       "SIGTERM: exit %s, %d pair(s) committed, %d temporary folder(s)\n",
       rc.substr(0, rc.size() - 1).c_str(), committed, temporary);
   EXPECT_EQ(temporary, 0);
-  if (committed < 3)
+  if (committed < 3) {
     EXPECT_EQ(rc, "130\n");  // stopped early: "interrupted, rerun to resume"
+  }
   std::string log;
   ASSERT_EQ(RunCommand(GeodriveBinary() + BuildArgs(out), &log), 0) << log;
   EXPECT_TRUE(OutputFiles(out) == OutputFiles(Reference()));
