@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <nlohmann/json.hpp>
 
+#include "geometry/internal/json_fields.h"
 #include "geometry/status.h"
 #include "geometry/trajectory_io.h"
 
@@ -13,27 +14,8 @@ namespace geodrive {
 namespace {
 
 using json = nlohmann::json;
-
-double Number(const std::string& path,
-              const json& j,
-              const std::string& where) {
-  if (!j.is_number()) ThrowInputError(path, where, " is not a number");
-  const double v = j.get<double>();
-  if (!std::isfinite(v)) ThrowInputError(path, where, " is not finite");
-  return v;
-}
-
-template <int N>
-Eigen::Matrix<double, N, 1> Vector(const std::string& path,
-                                   const json& j,
-                                   const std::string& where) {
-  if (!j.is_array() || j.size() != N)
-    ThrowInputError(path, where, " must be an array of ", N, " numbers");
-  Eigen::Matrix<double, N, 1> v;
-  for (int i = 0; i < N; ++i)
-    v[i] = Number(path, j[i], where + "[" + std::to_string(i) + "]");
-  return v;
-}
+using internal::JsonNumber;
+using internal::JsonVector;
 
 bool EndsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() &&
@@ -85,10 +67,11 @@ Trajectory ReadTrajectoryJson(const std::string& path,
     if (!c["width"].is_number_integer() || !c["height"].is_number_integer()) {
       ThrowInputError(path, "camera: width and height must be integers");
     }
-    PinholeCamera cam(
-        Number(path, c["fx"], "camera.fx"), Number(path, c["fy"], "camera.fy"),
-        Number(path, c["cx"], "camera.cx"), Number(path, c["cy"], "camera.cy"),
-        c["width"].get<int>(), c["height"].get<int>());
+    PinholeCamera cam(JsonNumber(path, c["fx"], "camera.fx"),
+                      JsonNumber(path, c["fy"], "camera.fy"),
+                      JsonNumber(path, c["cx"], "camera.cx"),
+                      JsonNumber(path, c["cy"], "camera.cy"),
+                      c["width"].get<int>(), c["height"].get<int>());
     cam.Check(path + ": camera");
     file_info.camera = cam;
   }
@@ -102,12 +85,12 @@ Trajectory ReadTrajectoryJson(const std::string& path,
     const std::string where = "frames[" + std::to_string(i) + "]";
     const json& f = frames[i];
     if (!f.is_object()) ThrowInputError(path, where, " must be an object");
-    const double t = f.contains("t") ? Number(path, f["t"], where + ".t")
+    const double t = f.contains("t") ? JsonNumber(path, f["t"], where + ".t")
                                      : static_cast<double>(i);
     if (!f.contains("position"))
       ThrowInputError(path, where, ": missing \"position\"");
     const Eigen::Vector3d position =
-        Vector<3>(path, f["position"], where + ".position");
+        JsonVector<3>(path, f["position"], where + ".position");
     Eigen::Quaterniond q;
     const bool has_q = f.contains("quaternion_wxyz"),
                has_r = f.contains("rotation");
@@ -118,7 +101,7 @@ Trajectory ReadTrajectoryJson(const std::string& path,
     }
     if (has_q) {
       const Eigen::Vector4d wxyz =
-          Vector<4>(path, f["quaternion_wxyz"], where + ".quaternion_wxyz");
+          JsonVector<4>(path, f["quaternion_wxyz"], where + ".quaternion_wxyz");
       if (std::abs(wxyz.norm() - 1.0) > 1e-3) {
         ThrowInputError(path, where, ": quaternion is not unit norm (",
                         wxyz.norm(), "), the rotation is not orthonormal");
@@ -130,7 +113,7 @@ Trajectory ReadTrajectoryJson(const std::string& path,
         ThrowInputError(path, where, ".rotation must be 3 rows");
       Eigen::Matrix3d m;
       for (int row = 0; row < 3; ++row) {
-        m.row(row) = Vector<3>(
+        m.row(row) = JsonVector<3>(
             path, r[row], where + ".rotation[" + std::to_string(row) + "]");
       }
       const double err = (m.transpose() * m - Eigen::Matrix3d::Identity())

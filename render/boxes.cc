@@ -8,24 +8,18 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "geometry/internal/json_fields.h"
 #include "geometry/status.h"
 
 namespace geodrive {
 namespace {
 
 using json = nlohmann::json;
+using internal::JsonNumber;
+using internal::JsonVector;
 
 constexpr int kMaxImageSide = 16384;
 constexpr int kMaxFrames = 1000000;
-
-double Number(const std::string& path,
-              const json& j,
-              const std::string& where) {
-  if (!j.is_number()) ThrowInputError(path, where, " is not a number");
-  const double v = j.get<double>();
-  if (!std::isfinite(v)) ThrowInputError(path, where, " is not finite");
-  return v;
-}
 
 int Integer(const std::string& path,
             const json& j,
@@ -38,18 +32,6 @@ int Integer(const std::string& path,
   if (v < lo || v > hi)
     ThrowInputError(path, where, " = ", v, " is outside ", lo, "..", hi);
   return static_cast<int>(v);
-}
-
-template <int N>
-Eigen::Matrix<double, N, 1> Vector(const std::string& path,
-                                   const json& j,
-                                   const std::string& where) {
-  if (!j.is_array() || j.size() != N)
-    ThrowInputError(path, where, " must be an array of ", N, " numbers");
-  Eigen::Matrix<double, N, 1> v;
-  for (int i = 0; i < N; ++i)
-    v[i] = Number(path, j[i], where + "[" + std::to_string(i) + "]");
-  return v;
 }
 
 std::string String(const std::string& path,
@@ -299,7 +281,8 @@ BoxSequences ReadBoxesJson(const std::string& path) {
       BoxFrame f;
       f.frame = Integer(path, e["frame"], fw + ".frame", 0, kMaxFrames);
       if (e.contains("box_2d")) {
-        const Eigen::Vector4d b = Vector<4>(path, e["box_2d"], fw + ".box_2d");
+        const Eigen::Vector4d b =
+            JsonVector<4>(path, e["box_2d"], fw + ".box_2d");
         f.box_2d = Box2d{b[0], b[1], b[2], b[3]};
       }
       if (e.contains("box_3d")) {
@@ -312,10 +295,10 @@ BoxSequences ReadBoxesJson(const std::string& path) {
             ThrowInputError(path, fw, ".box_3d: missing \"", key, "\"");
         }
         Box3d box;
-        box.center = Vector<3>(path, b["center"], fw + ".box_3d.center");
-        box.size = Vector<3>(path, b["size"], fw + ".box_3d.size");
-        const Eigen::Vector4d q =
-            Vector<4>(path, b["rotation_wxyz"], fw + ".box_3d.rotation_wxyz");
+        box.center = JsonVector<3>(path, b["center"], fw + ".box_3d.center");
+        box.size = JsonVector<3>(path, b["size"], fw + ".box_3d.size");
+        const Eigen::Vector4d q = JsonVector<4>(path, b["rotation_wxyz"],
+                                                fw + ".box_3d.rotation_wxyz");
         if (std::abs(q.norm() - 1.0) > 1e-3)
           ThrowInputError(path, fw, ".box_3d.rotation_wxyz has norm ", q.norm(),
                           " (need a unit quaternion, scalar first)");
@@ -323,7 +306,7 @@ BoxSequences ReadBoxesJson(const std::string& path) {
         f.box_3d = box;
       }
       if (e.contains("visibility"))
-        f.visibility = Number(path, e["visibility"], fw + ".visibility");
+        f.visibility = JsonNumber(path, e["visibility"], fw + ".visibility");
       seq.frames.push_back(f);
     }
     boxes.instances.push_back(std::move(seq));

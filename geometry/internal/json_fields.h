@@ -1,0 +1,41 @@
+#pragma once
+// Checked readers for JSON fields, shared by our JSON file formats (trajectory
+// JSON, boxes JSON). Internal: includes nlohmann/json, so only .cc files
+// include it. Every failure throws InputError naming the file and the JSON
+// location (`where`).
+
+#include <Eigen/Core>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "geometry/status.h"
+
+namespace geodrive {
+namespace internal {
+
+// A finite number.
+inline double JsonNumber(const std::string& path,
+                         const nlohmann::json& j,
+                         const std::string& where) {
+  if (!j.is_number()) ThrowInputError(path, where, " is not a number");
+  const double v = j.get<double>();
+  if (!std::isfinite(v)) ThrowInputError(path, where, " is not finite");
+  return v;
+}
+
+// An array of exactly N finite numbers.
+template <int N>
+Eigen::Matrix<double, N, 1> JsonVector(const std::string& path,
+                                       const nlohmann::json& j,
+                                       const std::string& where) {
+  if (!j.is_array() || j.size() != N)
+    ThrowInputError(path, where, " must be an array of ", N, " numbers");
+  Eigen::Matrix<double, N, 1> v;
+  for (int i = 0; i < N; ++i)
+    v[i] = JsonNumber(path, j[i], where + "[" + std::to_string(i) + "]");
+  return v;
+}
+
+}  // namespace internal
+}  // namespace geodrive
