@@ -750,26 +750,26 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     std::error_code ec;
     fs::remove_all(opt.out + "/pairs/.tmp-" + c.id, ec);
   }
-  std::vector<const Clip*> todo;
+  std::vector<const Clip*> pending;
   for (const auto& c : mine) {
     if (fs::exists(opt.out + "/pairs/" + c.id + "/meta.json")) {
       ++summary.skipped_existing;
     } else {
-      todo.push_back(&c);
+      pending.push_back(&c);
     }
   }
   const std::string suffix = ShardSuffix(opt.shard_index, opt.shard_count);
   JsonlAppender manifest(opt.out + "/manifest" + suffix + ".jsonl");
   JsonlAppender failures(opt.out + "/failures" + suffix + ".jsonl");
-  ProgressReporter progress("build-dataset", todo.size(), 10.0, opt.quiet);
+  ProgressReporter progress("build-dataset", pending.size(), 10.0, opt.quiet);
   std::mutex mutex;
   std::atomic<size_t> next{0};
   auto worker = [&] {
     std::map<std::string, double> local_seconds;
     while (!StopRequested()) {
       const size_t k = next.fetch_add(1);
-      if (k >= todo.size()) break;
-      const Clip& clip = *todo[k];
+      if (k >= pending.size()) break;
+      const Clip& clip = *pending[k];
       const std::string tmp = opt.out + "/pairs/.tmp-" + clip.id;
       const std::string final_dir = opt.out + "/pairs/" + clip.id;
       std::string stage = "setup", error;
@@ -806,12 +806,12 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   };
   std::vector<std::thread> pool;
   for (int t = 0;
-       t < std::min<int>(opt.threads, std::max<size_t>(1, todo.size())); ++t) {
+       t < std::min<int>(opt.threads, std::max<size_t>(1, pending.size())); ++t) {
     pool.emplace_back(worker);
   }
   for (auto& th : pool) th.join();
   progress.Finish();
-  summary.interrupted = StopRequested() && next.load() < todo.size();
+  summary.interrupted = StopRequested() && next.load() < pending.size();
   summary.seconds_total =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start)
           .count();
