@@ -541,8 +541,7 @@ TEST(SyntheticDatasetNoise, OutliersGetMinusInfConfidenceAndWrongDepth) {
 // global pose and the boxes' projected corners from the JSON files; they match
 // the C++ ground truth to 1e-6.
 TEST_F(SyntheticDatasetTest, DevkitConventionsMatchGroundTruth) {
-  if (!test::PythonHasModule("numpy"))
-    GTEST_SKIP() << test::kDebianPython << " has no numpy";
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
   const int sample_index = 3;
   std::string out;
   const std::string cmd =

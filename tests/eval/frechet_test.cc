@@ -51,12 +51,7 @@ double ScipyReference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 }
 
 TEST(Frechet, MatchesScipySqrtmOnRandomAndIllConditioned) {
-  if (!test::PythonHasModule("scipy")) {
-    std::fprintf(
-        stderr,
-        "*** SKIPPED: /usr/bin/python3 has no scipy (python3-scipy) ***\n");
-    GTEST_SKIP() << "python3-scipy is not installed";
-  }
+  GEODRIVE_REQUIRE_PYTHON_MODULE("scipy");
   struct Case {
     const char* name;
     int n, d;

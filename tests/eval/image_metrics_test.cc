@@ -83,21 +83,12 @@ std::pair<double, double> SkimageReference(const cv::Mat& a,
   return {psnr, ssim};
 }
 
-bool HaveSkimage() {
-  if (test::PythonHasModule("skimage")) return true;
-  std::fprintf(stderr,
-               "*** SKIPPED: /usr/bin/python3 has no skimage (apt-get install "
-               "python3-skimage) "
-               "***\n");
-  return false;
-}
-
 struct Case {
   int rows, cols, channels, noise;
 };
 
 TEST(ImageMetrics, MatchesSkimageOnGeneratedImages) {
-  if (!HaveSkimage()) GTEST_SKIP() << "python3-skimage is not installed";
+  GEODRIVE_REQUIRE_PYTHON_MODULE("skimage");
   const Case cases[] = {{64, 80, 3, 20},  {11, 11, 3, 30}, {37, 23, 1, 5},
                         {120, 97, 3, 60}, {48, 720, 3, 3}, {30, 41, 1, 120}};
   uint32_t seed = 1;
@@ -119,7 +110,7 @@ TEST(ImageMetrics, MatchesSkimageOnGeneratedImages) {
 }
 
 TEST(ImageMetrics, LumaMatchesSkimage) {
-  if (!HaveSkimage()) GTEST_SKIP() << "python3-skimage is not installed";
+  GEODRIVE_REQUIRE_PYTHON_MODULE("skimage");
   const cv::Mat gt = MakeImage(50, 70, 3, 10, 7);
   const cv::Mat pred = Perturb(gt, 25, 8);
   const auto [ref_psnr, ref_ssim] = SkimageReference(gt, pred, true);

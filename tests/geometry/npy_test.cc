@@ -513,11 +513,7 @@ std::string CrosscheckScript() {
 }
 
 TEST(NpyNumpy, ReadsEveryFileNumpyWrites) {
-  if (!test::PythonHasModule("numpy")) {
-    GTEST_SKIP()
-        << "numpy is not installed for " << test::kDebianPython
-        << " (apt-get install python3-numpy); skipping the numpy cross-check";
-  }
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
   const std::string dir = test::MakeTempDir("npy_from_numpy");
   std::string out;
   ASSERT_EQ(test::RunCommand(std::string(test::kDebianPython) + " " +
@@ -549,11 +545,7 @@ TEST(NpyNumpy, ReadsEveryFileNumpyWrites) {
 }
 
 TEST(NpyNumpy, NumpyLoadsEveryFileWeWrite) {
-  if (!test::PythonHasModule("numpy")) {
-    GTEST_SKIP()
-        << "numpy is not installed for " << test::kDebianPython
-        << " (apt-get install python3-numpy); skipping the numpy cross-check";
-  }
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
   const std::string dir = test::MakeTempDir("npy_to_numpy");
   const std::vector<std::vector<int64_t>> shapes = {{},  {0},    {0, 3},
                                                     {7}, {3, 4}, {2, 3, 4}};

@@ -414,11 +414,7 @@ namespace {
 // np.frombuffer the body with a structured dtype, and compare with the same
 // cloud saved as .npy.
 TEST(Ply, NumpyParsesOurBinaryPly) {
-  if (!test::PythonHasModule("numpy")) {
-    GTEST_SKIP()
-        << "numpy is not installed for " << test::kDebianPython
-        << " (apt-get install python3-numpy); skipping the PLY cross-check";
-  }
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
   const std::string dir = test::MakeTempDir("ply_numpy");
   const PointCloud cloud = RandomCloud(500);
   WritePly(dir + "/cloud.ply", cloud);

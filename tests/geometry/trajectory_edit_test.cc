@@ -242,8 +242,7 @@ TEST(TrajectoryJson, RoundTripWithCamera) {
   EXPECT_EQ(ReadTrajectoryAny(path).size(), t.size());
 
   // The written file validates against data_schema/trajectory.schema.json.
-  if (!test::PythonHasModule("jsonschema"))
-    GTEST_SKIP() << "python3-jsonschema not installed";
+  GEODRIVE_REQUIRE_PYTHON_MODULE("jsonschema");
   const std::string schema =
       std::string(GEODRIVE_SOURCE_DIR) + "/data_schema/trajectory.schema.json";
   const std::string cmd =

@@ -622,8 +622,8 @@ namespace geodrive {
 namespace {
 
 TEST(DynamicEdit, RenderCommandAppliesEditsAndRecordsThem) {
-  if (!std::ifstream(test::GeodriveBinary()).good())
-    GTEST_SKIP() << "SKIPPED: " << test::GeodriveBinary() << " not built";
+  ASSERT_TRUE(std::ifstream(test::GeodriveBinary()).good())
+      << test::GeodriveBinary() << " not built";
   const Scene& scene = TestScene();
   const std::string dir = test::MakeTempDir("edit_cli_run");
   WritePly(dir + "/cloud.ply", scene.cloud);
