@@ -2,7 +2,12 @@
 
 #include <omp.h>
 
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -139,14 +144,32 @@ inline void ProjectBlock(const SoaPositions& soa,
   }
 }
 
+// Soft-mode compositing state, one entry per pixel (structure of arrays,
+// padded by 8 so that 8-wide rows never leave the buffers).
+struct SoftState {
+  std::vector<float> acc_r, acc_g, acc_b;  // Σ_k w_k Π_{j<k} (1 - w_j) c_k
+  std::vector<float> cum;                  // Π_j (1 - w_j), 1 when empty
+  std::vector<int32_t> count;              // points composited so far (<= K)
+  std::vector<int32_t> first;              // front-most point, -1 = none
+  void Reset(size_t npix) {
+    const size_t n = npix + 8;
+    acc_r.assign(n, 0.0f);
+    acc_g.assign(n, 0.0f);
+    acc_b.assign(n, 0.0f);
+    cum.assign(n, 1.0f);
+    count.assign(n, 0);
+    first.assign(n, -1);
+  }
+};
+
 // Scratch memory reused across the frames a thread renders.
 struct Scratch {
   ProjectedBlock block;
-  std::vector<float> zbuf;      // zbuffer: nearest z per pixel (+inf = empty)
-  std::vector<uint8_t> counts;  // soft: entries per pixel
-  std::vector<uint64_t>
-      keys;  // soft: K per pixel, sorted (z bits << 32 | point index)
-  std::vector<float> pu, pv;   // soft: projected coordinates per point
+  SoftState soft;                 // soft: compositing state per pixel
+  std::vector<uint64_t> zkeys;    // zbuffer: min key per pixel (+1 spare slot)
+  std::vector<float> pu, pv, pz;  // soft: projected coordinates per point
+  std::vector<int32_t> cand, order, order_tmp;   // soft: visible points
+  std::vector<uint32_t> zbits, zbits_tmp, hist;  // soft: radix sort
   std::vector<int32_t> index;  // resolved point index per pixel (-1 = none)
 };
 
@@ -178,11 +201,138 @@ void WriteIndexOutputs(const PointCloud& cloud,
 }
 
 const Color3u8 kDefaultColor(200, 200, 200);
-constexpr float kInf = std::numeric_limits<float>::infinity();
 
-// Z-buffer. Points are visited in increasing index order and a pixel is taken
-// only by a STRICTLY nearer point, so among equal depths the smallest index
-// wins, whatever the thread count.
+// Depth-ordered key of a point: for z > 0 the float bits are monotonic, so
+// min(key) picks the nearest point and, among equal depths, the smallest
+// index.
+// Keys stay below 2^63 (z bits <= 0x7f800000), so they also order correctly as
+// signed 64-bit integers (AVX2 has only a signed 64-bit compare).
+constexpr uint64_t kEmptyKey = 0x7fffffffffffffffull;
+inline uint64_t PackKey(float z, int index) {
+  return (static_cast<uint64_t>(FloatBits(z)) << 32) |
+         static_cast<uint32_t>(index);
+}
+
+// Disk splats of one projected block into the key buffer: every pixel of a
+// point's bounding box whose centre is within the radius (d² <= r², float)
+// takes min(key). Returns the number of points that hit at least one pixel.
+// The scalar and AVX2 versions do the same float operations (no FMA) and
+// exact integer minima, so their outputs are identical; min() also makes the
+// result independent of the order in which points are visited.
+int64_t SplatDisksScalar(const ProjectedBlock& blk,
+                         int m,
+                         int base,
+                         float r,
+                         int w,
+                         int h,
+                         uint64_t* kb) {
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const float r2 = r * r;
+  int64_t projected = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!blk.ok[k]) continue;
+    const float u = blk.u[k], v = blk.v[k];
+    if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
+    const int j0 = std::max(0, CeilI(v - r));
+    const int j1 = std::min(h - 1, FloorI(v + r));
+    const int i0 = std::max(0, CeilI(u - r));
+    const int i1 = std::min(w - 1, FloorI(u + r));
+    const uint64_t key = PackKey(blk.z[k], base + k);
+    uint32_t hit = 0;
+    for (int j = j0; j <= j1; ++j) {
+      const float dy = static_cast<float>(j) - v;
+      const float dy2 = dy * dy;
+      uint64_t* row = kb + static_cast<size_t>(j) * w;
+      for (int c = i0; c <= i1; ++c) {
+        const float dx = static_cast<float>(c) - u;
+        const uint32_t in = (dx * dx + dy2) <= r2;
+        const uint64_t cand = in ? key : kEmptyKey;
+        row[c] = std::min(row[c], cand);
+        hit |= in;
+      }
+    }
+    projected += hit;
+  }
+  return projected;
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#define GEODRIVE_HAVE_AVX2_PATH 1
+std::atomic<bool> g_simd_enabled{true};
+bool UseAvx2() {
+  static const bool has_avx2 = __builtin_cpu_supports("avx2");
+  return has_avx2 && g_simd_enabled.load(std::memory_order_relaxed);
+}
+// Four columns at a time: a float distance test per lane, then a masked
+// 64-bit load / signed compare / masked store.
+__attribute__((target("avx2"))) int64_t SplatDisksAvx2(
+    const ProjectedBlock& blk,
+    int m,
+    int base,
+    float r,
+    int w,
+    int h,
+    uint64_t* kb) {
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const float r2 = r * r;
+  const __m128 vr2 = _mm_set1_ps(r2);
+  const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
+  int64_t projected = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!blk.ok[k]) continue;
+    const float u = blk.u[k], v = blk.v[k];
+    if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
+    const int j0 = std::max(0, CeilI(v - r));
+    const int j1 = std::min(h - 1, FloorI(v + r));
+    const int i0 = std::max(0, CeilI(u - r));
+    const int i1 = std::min(w - 1, FloorI(u + r));
+    const __m256i vkey =
+        _mm256_set1_epi64x(static_cast<long long>(PackKey(blk.z[k], base + k)));
+    const __m128 vu = _mm_set1_ps(u);
+    int hit = 0;
+    for (int c0 = i0; c0 <= i1; c0 += 4) {
+      const __m128i cols = _mm_add_epi32(_mm_set1_epi32(c0), lanes);
+      const __m128i in_box = _mm_cmpgt_epi32(_mm_set1_epi32(i1 + 1), cols);
+      const __m128 dx = _mm_sub_ps(_mm_cvtepi32_ps(cols), vu);
+      const __m128 dx2 = _mm_mul_ps(dx, dx);
+      for (int j = j0; j <= j1; ++j) {
+        const float dy = static_cast<float>(j) - v;
+        const __m128 d2 = _mm_add_ps(dx2, _mm_set1_ps(dy * dy));
+        const __m128i in =
+            _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(d2, vr2)), in_box);
+        const int bits = _mm_movemask_ps(_mm_castsi128_ps(in));
+        if (bits == 0) continue;
+        hit |= bits;
+        const __m256i mask = _mm256_cvtepi32_epi64(in);
+        long long* ptr =
+            reinterpret_cast<long long*>(kb + static_cast<size_t>(j) * w + c0);
+        const __m256i old = _mm256_maskload_epi64(ptr, mask);
+        const __m256i upd =
+            _mm256_and_si256(_mm256_cmpgt_epi64(old, vkey), mask);
+        _mm256_maskstore_epi64(ptr, upd, vkey);
+      }
+    }
+    projected += hit != 0;
+  }
+  return projected;
+}
+#endif
+
+int64_t SplatDisks(const ProjectedBlock& blk,
+                   int m,
+                   int base,
+                   float r,
+                   int w,
+                   int h,
+                   uint64_t* kb) {
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2()) return SplatDisksAvx2(blk, m, base, r, w, h, kb);
+#endif
+  return SplatDisksScalar(blk, m, base, r, w, h, kb);
+}
+
+// Z-buffer. Each pixel keeps the minimum key (z, index), so among equal depths
+// the smallest index wins, whatever the processing order or thread count.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && \
     defined(__linux__)
 // An AVX2 clone is picked at run time where available (no FMA: results are
@@ -195,24 +345,25 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 GEODRIVE_HOT_CLONES
 void RenderZBuffer(const PointCloud& cloud,
                    const SoaPositions& soa,
+                   const std::vector<uint32_t>& colors_rgbx,
                    const FrameProjector& proj,
                    const RenderOptions& options,
                    Scratch* scratch,
                    RenderedFrame* frame) {
   const int w = options.width, h = options.height;
   const size_t npix = static_cast<size_t>(w) * h;
-  std::vector<float>& zbuf = scratch->zbuf;
-  std::vector<int32_t>& index = scratch->index;
-  zbuf.assign(npix, kInf);
-  index.resize(npix);
-  float* zb = zbuf.data();
-  int32_t* ib = index.data();
+  // One 64-bit key per pixel (z bits << 32 | point index) and one spare slot
+  // that absorbs the writes of points outside the image (branch-free splat).
+  // The resolve pass below leaves every key empty again, so the buffer is
+  // only cleared when its size changes.
+  std::vector<uint64_t>& keys = scratch->zkeys;
+  if (keys.size() != npix + 1) keys.assign(npix + 1, kEmptyKey);
+  uint64_t* kb = keys.data();
   ProjectedBlock& blk = scratch->block;
   const int n = static_cast<int>(cloud.size());
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   int64_t projected = 0;
   const float r = static_cast<float>(options.radius_px);
-  const float r2 = r * r;
   for (int base = 0; base < n; base += kBlock) {
     const int m = std::min(kBlock, n - base);
     ProjectBlock(soa, base, m, proj, &blk);
@@ -230,72 +381,46 @@ void RenderZBuffer(const PointCloud& cloud,
         const float su = in ? fu : 0.0f, sv = in ? fv : 0.0f;
         const int32_t pix =
             static_cast<int32_t>(sv) * w + static_cast<int32_t>(su);
-        blk.ok[k] = in ? pix : -1;
+        blk.ok[k] = in ? pix : static_cast<int32_t>(npix);
+        projected += in;
       }
       for (int k = 0; k < m; ++k) {
-        const int32_t pix = blk.ok[k];
-        if (pix < 0) continue;
-        ++projected;
-        const float z = blk.z[k];
-        if (z < zb[pix]) {
-          zb[pix] = z;
-          ib[pix] = base + k;
-        }
+        uint64_t* slot = kb + blk.ok[k];
+        const uint64_t key = PackKey(blk.z[k], base + k);
+        if (key < *slot) *slot = key;
       }
       continue;
     }
-    for (int k = 0; k < m; ++k) {
-      if (!blk.ok[k]) continue;
-      const float u = blk.u[k], v = blk.v[k], z = blk.z[k];
-      if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
-      const int j0 = std::max(0, CeilI(v - r));
-      const int j1 = std::min(h - 1, FloorI(v + r));
-      bool hit = false;
-      for (int j = j0; j <= j1; ++j) {
-        const float dy = static_cast<float>(j) - v;
-        const float hw2 = r2 - dy * dy;
-        if (hw2 < 0) continue;
-        const float hw = std::sqrt(hw2);
-        const int i0 = std::max(0, CeilI(u - hw));
-        const int i1 = std::min(w - 1, FloorI(u + hw));
-        float* zrow = zb + static_cast<size_t>(j) * w;
-        int32_t* irow = ib + static_cast<size_t>(j) * w;
-        for (int c = i0; c <= i1; ++c) {
-          if (z < zrow[c]) {
-            zrow[c] = z;
-            irow[c] = base + k;
-          }
-        }
-        hit |= i0 <= i1;
-      }
-      projected += hit;
-    }
+    projected += SplatDisks(blk, m, base, r, w, h, kb);
   }
   frame->num_projected = projected;
 
-  // Resolve.
-  const bool has_colors = cloud.HasColors();
-  const Color3u8* colors = has_colors ? cloud.colors.data() : nullptr;
+  // Resolve (branch-free: empty pixels read the black sentinel colour at
+  // index n), and clear the keys for the next frame.
+  std::vector<int32_t>& index = scratch->index;
+  index.resize(npix);
+  int32_t* ib = index.data();
+  const uint32_t* colors = colors_rgbx.data();
   uint8_t* rgb = frame->rgb.ptr<uint8_t>();
-  float* depth = frame->depth.ptr<float>();
+  uint32_t* depth = reinterpret_cast<uint32_t*>(frame->depth.ptr<float>());
   uint8_t* mask = frame->mask.ptr<uint8_t>();
   int64_t valid = 0;
+  const uint32_t sentinel = static_cast<uint32_t>(n);
   for (size_t p = 0; p < npix; ++p) {
-    const float z = zb[p];
-    if (z == kInf) {
-      rgb[3 * p] = rgb[3 * p + 1] = rgb[3 * p + 2] = 0;
-      depth[p] = 0;
-      mask[p] = kMaskInvalid;
-      ib[p] = -1;
-      continue;
-    }
-    const Color3u8& c = has_colors ? colors[ib[p]] : kDefaultColor;
-    rgb[3 * p] = c[0];
-    rgb[3 * p + 1] = c[1];
-    rgb[3 * p + 2] = c[2];
-    depth[p] = z;
-    mask[p] = kMaskValid;
-    ++valid;
+    const uint64_t key = kb[p];
+    kb[p] = kEmptyKey;
+    const uint32_t is_valid = key != kEmptyKey;
+    const uint32_t idx =
+        is_valid ? static_cast<uint32_t>(key & 0xffffffffu) : sentinel;
+    const uint32_t c = colors[idx];
+    // Bytes 0..2 of the little-endian RGBX word are R, G, B.
+    rgb[3 * p] = static_cast<uint8_t>(c);
+    rgb[3 * p + 1] = static_cast<uint8_t>(c >> 8);
+    rgb[3 * p + 2] = static_cast<uint8_t>(c >> 16);
+    depth[p] = is_valid ? static_cast<uint32_t>(key >> 32) : 0u;
+    mask[p] = static_cast<uint8_t>(0u - is_valid);
+    ib[p] = is_valid ? static_cast<int32_t>(idx) : -1;
+    valid += is_valid;
   }
   frame->num_valid = valid;
 }
@@ -350,10 +475,154 @@ inline float SoftD2(int c, int j, float u, float v, float inv_s2) {
   return (dx * dx + dy * dy) * inv_s2;
 }
 
-// Soft mode. Each pixel keeps a sorted array of at most K keys (z bits << 32 |
-// point index): one integer compare orders by (z, index), as PyTorch3D's
-// rasteriser does (z > 0, so the float bits are monotonic). The distance is
-// recomputed at compositing time from the projected (u, v).
+// Splat of points visited in (z, index) order, compositing on the fly: the
+// first K points that reach a pixel ARE its K nearest, so each one is
+// composited front to back as it arrives, with the operation order of
+// PyTorch3D's CPU AlphaCompositor (acc += cum * w * c; cum *= 1 - w), where
+// w = 1 - d² / r² and d² is the squared NDC distance (SoftD2). A point that
+// reaches a full pixel (or one outside its disk) is applied with w = 0, which
+// leaves acc and cum bitwise unchanged, so the update has no branch. Returns
+// the number of points within the radius of at least one pixel. The scalar and
+// AVX2 versions evaluate the same float operations (no FMA).
+struct SoftSplatArgs {
+  const float* pu;
+  const float* pv;
+  const float* colors01;
+  const int32_t* order;
+  size_t num;
+  int w, h, k_max;
+  float r_px_bound, inv_s2, r2, inv_r2;
+  SoftState* state;
+};
+
+int64_t SoftSplatScalar(const SoftSplatArgs& a) {
+  SoftState& st = *a.state;
+  int64_t projected = 0;
+  for (size_t e = 0; e < a.num; ++e) {
+    const int32_t idx = a.order[e];
+    const float u = a.pu[idx], v = a.pv[idx];
+    const float* col = a.colors01 + 3 * static_cast<size_t>(idx);
+    const int j0 = std::max(0, CeilI(v - a.r_px_bound));
+    const int j1 = std::min(a.h - 1, FloorI(v + a.r_px_bound));
+    const int i0 = std::max(0, CeilI(u - a.r_px_bound));
+    const int i1 = std::min(a.w - 1, FloorI(u + a.r_px_bound));
+    int hit = 0;
+    for (int j = j0; j <= j1; ++j) {
+      const size_t row = static_cast<size_t>(j) * a.w;
+      for (int c = i0; c <= i1; ++c) {
+        const float d2 = SoftD2(c, j, u, v, a.inv_s2);
+        if (!(d2 < a.r2)) continue;
+        hit = 1;
+        const size_t p = row + c;
+        if (st.count[p] >= a.k_max) continue;
+        const float alpha = 1.0f - d2 * a.inv_r2;
+        const float cum = st.cum[p];
+        st.acc_r[p] += cum * alpha * col[0];
+        st.acc_g[p] += cum * alpha * col[1];
+        st.acc_b[p] += cum * alpha * col[2];
+        st.cum[p] = cum * (1 - alpha);
+        if (st.count[p] == 0) st.first[p] = idx;
+        ++st.count[p];
+      }
+    }
+    projected += hit;
+  }
+  return projected;
+}
+
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+// Eight pixels of a row at a time.
+__attribute__((target("avx2"))) int64_t SoftSplatAvx2(const SoftSplatArgs& a) {
+  SoftState& st = *a.state;
+  float* acc_r = st.acc_r.data();
+  float* acc_g = st.acc_g.data();
+  float* acc_b = st.acc_b.data();
+  float* cum_p = st.cum.data();
+  int32_t* count_p = st.count.data();
+  int32_t* first_p = st.first.data();
+  int64_t projected = 0;
+  const __m256 vr2 = _mm256_set1_ps(a.r2);
+  const __m256 vinv = _mm256_set1_ps(a.inv_s2);
+  const __m256 vinv_r2 = _mm256_set1_ps(a.inv_r2);
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256i vk = _mm256_set1_epi32(a.k_max);
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  for (size_t e = 0; e < a.num; ++e) {
+    const int32_t idx = a.order[e];
+    const float u = a.pu[idx], v = a.pv[idx];
+    const float* col = a.colors01 + 3 * static_cast<size_t>(idx);
+    const __m256 cr = _mm256_set1_ps(col[0]);
+    const __m256 cg = _mm256_set1_ps(col[1]);
+    const __m256 cb = _mm256_set1_ps(col[2]);
+    const __m256i vidx = _mm256_set1_epi32(idx);
+    const int j0 = std::max(0, CeilI(v - a.r_px_bound));
+    const int j1 = std::min(a.h - 1, FloorI(v + a.r_px_bound));
+    const int i0 = std::max(0, CeilI(u - a.r_px_bound));
+    const int i1 = std::min(a.w - 1, FloorI(u + a.r_px_bound));
+    const __m256 vu = _mm256_set1_ps(u);
+    int hit = 0;
+    for (int c0 = i0; c0 <= i1; c0 += 8) {
+      const __m256i cols = _mm256_add_epi32(_mm256_set1_epi32(c0), lanes);
+      const __m256 in_box = _mm256_castsi256_ps(
+          _mm256_cmpgt_epi32(_mm256_set1_epi32(i1 + 1), cols));
+      const __m256 dx = _mm256_sub_ps(_mm256_cvtepi32_ps(cols), vu);
+      const __m256 dx2 = _mm256_mul_ps(dx, dx);
+      for (int j = j0; j <= j1; ++j) {
+        const float dy = static_cast<float>(j) - v;
+        const __m256 d2 =
+            _mm256_mul_ps(_mm256_add_ps(dx2, _mm256_set1_ps(dy * dy)), vinv);
+        const __m256 in =
+            _mm256_and_ps(_mm256_cmp_ps(d2, vr2, _CMP_LT_OQ), in_box);
+        if (_mm256_movemask_ps(in) == 0) continue;
+        hit = 1;
+        const size_t p = static_cast<size_t>(j) * a.w + c0;
+        const __m256i cnt =
+            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(count_p + p));
+        const __m256 active =
+            _mm256_and_ps(in, _mm256_castsi256_ps(_mm256_cmpgt_epi32(vk, cnt)));
+        const __m256 alpha = _mm256_and_ps(
+            _mm256_sub_ps(one, _mm256_mul_ps(d2, vinv_r2)), active);
+        const __m256 cum = _mm256_loadu_ps(cum_p + p);
+        const __m256 ca = _mm256_mul_ps(cum, alpha);
+        _mm256_storeu_ps(acc_r + p, _mm256_add_ps(_mm256_loadu_ps(acc_r + p),
+                                                  _mm256_mul_ps(ca, cr)));
+        _mm256_storeu_ps(acc_g + p, _mm256_add_ps(_mm256_loadu_ps(acc_g + p),
+                                                  _mm256_mul_ps(ca, cg)));
+        _mm256_storeu_ps(acc_b + p, _mm256_add_ps(_mm256_loadu_ps(acc_b + p),
+                                                  _mm256_mul_ps(ca, cb)));
+        _mm256_storeu_ps(cum_p + p,
+                         _mm256_mul_ps(cum, _mm256_sub_ps(one, alpha)));
+        const __m256i act_i = _mm256_castps_si256(active);
+        // count - (-1) where active.
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(count_p + p),
+                            _mm256_sub_epi32(cnt, act_i));
+        const __m256i is_first = _mm256_and_si256(
+            act_i, _mm256_cmpeq_epi32(cnt, _mm256_setzero_si256()));
+        const __m256i first =
+            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(first_p + p));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(first_p + p),
+                            _mm256_blendv_epi8(first, vidx, is_first));
+      }
+    }
+    projected += hit;
+  }
+  return projected;
+}
+#endif
+
+int64_t SoftSplat(const SoftSplatArgs& a) {
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2()) return SoftSplatAvx2(a);
+#endif
+  return SoftSplatScalar(a);
+}
+
+// Soft mode (PyTorch3D rasteriser + alpha compositor). The points that can
+// reach the image are sorted by (z, index) (a stable LSD radix sort of the
+// positive float depth bits over index order); visiting them in that order,
+// the first K candidates of a pixel ARE its K nearest, so the per-pixel lists
+// only ever append. The distance is recomputed at compositing time from the
+// projected (u, v).
 GEODRIVE_HOT_CLONES
 void RenderSoft(const PointCloud& cloud,
                 const SoaPositions& soa,
@@ -366,14 +635,12 @@ void RenderSoft(const PointCloud& cloud,
   const size_t npix = static_cast<size_t>(w) * h;
   const int k_max = options.points_per_pixel;
   const int n = static_cast<int>(cloud.size());
-  scratch->counts.assign(npix, 0);
-  scratch->keys.resize(npix * k_max);
   scratch->pu.resize(n);
   scratch->pv.resize(n);
-  uint8_t* counts = scratch->counts.data();
-  uint64_t* keys = scratch->keys.data();
+  scratch->pz.resize(n);
   float* pu = scratch->pu.data();
   float* pv = scratch->pv.data();
+  float* pz = scratch->pz.data();
 
   // Pixels per NDC unit: the short side spans 2 NDC.
   const double s = std::min(w, h) / 2.0;
@@ -383,102 +650,97 @@ void RenderSoft(const PointCloud& cloud,
   // Candidate rows/columns are bounded by a slightly larger pixel radius; the
   // exact test is d² < r² in NDC, as in PyTorch3D.
   const float r_px_bound = r_px * 1.0001f + 1e-4f;
-  const float r2_px_bound = r_px_bound * r_px_bound;
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   ProjectedBlock& blk = scratch->block;
-  int64_t projected = 0;
+  // Pass 1: project; keep the points that can reach the image.
+  std::vector<int32_t>& cand = scratch->cand;
+  std::vector<uint32_t>& zbits = scratch->zbits;
+  cand.clear();
+  zbits.clear();
   for (int base = 0; base < n; base += kBlock) {
     const int m = std::min(kBlock, n - base);
     ProjectBlock(soa, base, m, proj, &blk);
     std::memcpy(pu + base, blk.u, m * sizeof(float));
     std::memcpy(pv + base, blk.v, m * sizeof(float));
+    std::memcpy(pz + base, blk.z, m * sizeof(float));
     for (int k = 0; k < m; ++k) {
       if (!blk.ok[k]) continue;
-      const float u = blk.u[k], v = blk.v[k], z = blk.z[k];
+      const float u = blk.u[k], v = blk.v[k];
       if (!(u > -r_px - 1 && u < fw + r_px && v > -r_px - 1 && v < fh + r_px))
         continue;
-      const int j0 = std::max(0, CeilI(v - r_px_bound));
-      const int j1 = std::min(h - 1, FloorI(v + r_px_bound));
-      bool hit = false;
-      const uint64_t key = (static_cast<uint64_t>(FloatBits(z)) << 32) |
-                           static_cast<uint64_t>(base + k);
-      for (int j = j0; j <= j1; ++j) {
-        const float dy = static_cast<float>(j) - v;
-        const float hw2 = r2_px_bound - dy * dy;
-        if (hw2 < 0) continue;
-        const float hw = std::sqrt(hw2);
-        const int i0 = std::max(0, CeilI(u - hw));
-        const int i1 = std::min(w - 1, FloorI(u + hw));
-        const size_t row = static_cast<size_t>(j) * w;
-        for (int c = i0; c <= i1; ++c) {
-          if (!(SoftD2(c, j, u, v, inv_s2) < r2)) continue;
-          hit = true;
-          const size_t pix = row + c;
-          uint64_t* arr = keys + pix * k_max;
-          const int cnt = counts[pix];
-          int pos_k;
-          if (cnt == k_max) {
-            if (key >= arr[k_max - 1]) continue;
-            pos_k = k_max - 1;
-          } else {
-            pos_k = cnt;
-            counts[pix] = static_cast<uint8_t>(cnt + 1);
-          }
-          while (pos_k > 0 && key < arr[pos_k - 1]) {
-            arr[pos_k] = arr[pos_k - 1];
-            --pos_k;
-          }
-          arr[pos_k] = key;
-        }
-      }
-      projected += hit;
+      cand.push_back(base + k);
+      zbits.push_back(FloatBits(blk.z[k]));
     }
   }
-  frame->num_projected = projected;
+  // Pass 2: stable radix sort by z bits (16 + 15 bits: z > 0, so bit 31 is
+  // 0); ties keep index order.
+  const size_t num = cand.size();
+  std::vector<int32_t>& order = scratch->order;
+  std::vector<int32_t>& tmp = scratch->order_tmp;
+  std::vector<uint32_t>& tmp_bits = scratch->zbits_tmp;
+  order.resize(num);
+  tmp.resize(num);
+  tmp_bits.resize(num);
+  std::vector<uint32_t>& hist = scratch->hist;
+  hist.assign(65536 + 32768, 0u);
+  uint32_t* h0 = hist.data();
+  uint32_t* h1 = hist.data() + 65536;
+  for (size_t i = 0; i < num; ++i) {
+    ++h0[zbits[i] & 0xffffu];
+    ++h1[zbits[i] >> 16];
+  }
+  uint32_t sum0 = 0, sum1 = 0;
+  for (int b = 0; b < 65536; ++b) {
+    const uint32_t c = h0[b];
+    h0[b] = sum0;
+    sum0 += c;
+  }
+  for (int b = 0; b < 32768; ++b) {
+    const uint32_t c = h1[b];
+    h1[b] = sum1;
+    sum1 += c;
+  }
+  for (size_t i = 0; i < num; ++i) {
+    const uint32_t d = h0[zbits[i] & 0xffffu]++;
+    tmp[d] = cand[i];
+    tmp_bits[d] = zbits[i];
+  }
+  for (size_t i = 0; i < num; ++i) order[h1[tmp_bits[i] >> 16]++] = tmp[i];
 
-  // Composite front to back (the operation order of PyTorch3D's CPU
-  // AlphaCompositor).
+  // Pass 3: splat and composite front to back.
+  SoftState& state = scratch->soft;
+  state.Reset(npix);
+  const float inv_r2 = 1.0f / r2;
+  SoftSplatArgs args{pu, pv,     colors01.data(), order.data(), num,
+                     w,  h,      k_max,           r_px_bound,   inv_s2,
+                     r2, inv_r2, &state};
+  frame->num_projected = SoftSplat(args);
+
+  // Resolve.
   std::vector<int32_t>& index = scratch->index;
   index.resize(npix);
-  const float inv_r2 = 1.0f / r2;
   uint8_t* rgb = frame->rgb.ptr<uint8_t>();
   float* depth = frame->depth.ptr<float>();
   uint8_t* mask = frame->mask.ptr<uint8_t>();
   float* rgbf =
       options.output_float_rgb ? frame->rgb_float.ptr<float>() : nullptr;
   int64_t valid = 0;
-  for (int j = 0; j < h; ++j) {
-    for (int c = 0; c < w; ++c) {
-      const size_t p = static_cast<size_t>(j) * w + c;
-      const int cnt = counts[p];
-      float acc[3] = {0, 0, 0};
-      if (cnt == 0) {
-        depth[p] = 0;
-        mask[p] = kMaskInvalid;
-        index[p] = -1;
-      } else {
-        const uint64_t* arr = keys + p * k_max;
-        float cum = 1.0f;
-        for (int k = 0; k < cnt; ++k) {
-          const uint32_t idx = static_cast<uint32_t>(arr[k] & 0xffffffffu);
-          const float alpha =
-              1.0f - SoftD2(c, j, pu[idx], pv[idx], inv_s2) * inv_r2;
-          const float* col = colors01.data() + 3 * static_cast<size_t>(idx);
-          acc[0] += cum * alpha * col[0];
-          acc[1] += cum * alpha * col[1];
-          acc[2] += cum * alpha * col[2];
-          cum = cum * (1 - alpha);
-        }
-        depth[p] = BitsFloat(static_cast<uint32_t>(arr[0] >> 32));
-        mask[p] = kMaskValid;
-        index[p] = static_cast<int32_t>(arr[0] & 0xffffffffu);
-        ++valid;
-      }
-      for (int ch = 0; ch < 3; ++ch) {
-        const float val = std::min(255.0f, std::max(0.0f, acc[ch] * 255.0f));
-        rgb[3 * p + ch] = static_cast<uint8_t>(val + 0.5f);
-        if (rgbf) rgbf[3 * p + ch] = acc[ch];
-      }
+  for (size_t p = 0; p < npix; ++p) {
+    const int32_t first = state.first[p];
+    const float acc[3] = {state.acc_r[p], state.acc_g[p], state.acc_b[p]};
+    if (first < 0) {
+      depth[p] = 0;
+      mask[p] = kMaskInvalid;
+    } else {
+      depth[p] = pz[first];
+      mask[p] = kMaskValid;
+      ++valid;
+    }
+    index[p] = first;
+    for (int ch = 0; ch < 3; ++ch) {
+      const float val = std::min(255.0f, std::max(0.0f, acc[ch] * 255.0f));
+      rgb[3 * p + ch] = static_cast<uint8_t>(val + 0.5f);
+      if (rgbf) rgbf[3 * p + ch] = acc[ch];
     }
   }
   frame->num_valid = valid;
@@ -489,6 +751,16 @@ std::vector<float> Colors01(const PointCloud& cloud) {
   for (size_t i = 0; i < cloud.size(); ++i) {
     const Color3u8& c = cloud.HasColors() ? cloud.colors[i] : kDefaultColor;
     for (int ch = 0; ch < 3; ++ch) out[3 * i + ch] = c[ch] / 255.0f;
+  }
+  return out;
+}
+
+// Colours as little-endian RGBX words, plus a black sentinel at index n.
+std::vector<uint32_t> ColorsRgbx(const PointCloud& cloud) {
+  std::vector<uint32_t> out(cloud.size() + 1, 0u);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Color3u8& c = cloud.HasColors() ? cloud.colors[i] : kDefaultColor;
+    out[i] = uint32_t{c[0]} | (uint32_t{c[1]} << 8) | (uint32_t{c[2]} << 16);
   }
   return out;
 }
@@ -514,6 +786,7 @@ PinholeCamera FrameCamera(const PinholeCamera& camera,
 void RenderOne(const PointCloud& cloud,
                const SoaPositions& soa,
                const std::vector<float>& colors01,
+               const std::vector<uint32_t>& colors_rgbx,
                const PinholeCamera& camera,
                const Rigid3d& cam_from_world,
                const RenderOptions& options,
@@ -522,7 +795,7 @@ void RenderOne(const PointCloud& cloud,
   const FrameProjector proj(camera, cam_from_world, options);
   AllocateOutputs(options, frame);
   if (options.mode == RenderMode::kZBuffer) {
-    RenderZBuffer(cloud, soa, proj, options, scratch, frame);
+    RenderZBuffer(cloud, soa, colors_rgbx, proj, options, scratch, frame);
     if (options.hole_fill) {
       for (int it = 0; it < options.hole_fill_iterations; ++it) {
         const int64_t filled = HoleFillPass(options, &scratch->index, frame);
@@ -539,6 +812,15 @@ void RenderOne(const PointCloud& cloud,
 }
 
 }  // namespace
+
+bool SetRendererSimdEnabled(bool enabled) {
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  return g_simd_enabled.exchange(enabled);
+#else
+  (void)enabled;
+  return false;
+#endif
+}
 
 std::string ToString(RenderMode mode) {
   return mode == RenderMode::kZBuffer ? "zbuffer" : "soft";
@@ -656,6 +938,9 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
                                           ? Colors01(cloud_in_world)
                                           : std::vector<float>();
 
+  const std::vector<uint32_t> colors_rgbx = options.mode == RenderMode::kZBuffer
+                                                ? ColorsRgbx(cloud_in_world)
+                                                : std::vector<uint32_t>();
   const SoaPositions soa(cloud_in_world);
   RenderResult& result = *result_out;
   result.frames.resize(num_frames);
@@ -670,7 +955,7 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
     thread_local Scratch scratch;
 #pragma omp for schedule(dynamic, 1)
     for (int f = 0; f < num_frames; ++f) {
-      RenderOne(cloud_in_world, soa, colors01, frame_cameras[f],
+      RenderOne(cloud_in_world, soa, colors01, colors_rgbx, frame_cameras[f],
                 cam_from_world[f], options, &scratch, &result.frames[f]);
     }
   }

@@ -153,6 +153,11 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
                       const RenderOptions& options,
                       RenderResult* result);
 
+// Testing hook: enables or disables the AVX2 splat kernels (on by default
+// where the CPU has AVX2). Both paths give byte-identical output; returns the
+// previous setting.
+bool SetRendererSimdEnabled(bool enabled);
+
 // Throws InputError("<what>: ...") if the pose has NaN/Inf or a rotation that
 // is not orthonormal (quaternion norm off by more than `tol`).
 void CheckPose(const Rigid3d& pose, const std::string& what, double tol = 1e-6);

@@ -389,6 +389,55 @@ TEST(Renderer, ByteIdenticalWithOneOrManyThreads) {
   }
 }
 
+// ---- SIMD and scalar kernels agree ----
+
+TEST(Renderer, SimdAndScalarKernelsGiveIdenticalBytes) {
+  const PointCloud cloud = RandomOverlappingCloud(3000);
+  const PinholeCamera camera(60, 64, 44.0, 26.0, 80, 56);
+  const Rigid3d cam_from_world(
+      QuaternionFromAngleAxis(Eigen::Vector3d(0.02, 0.05, -0.03)),
+      Eigen::Vector3d(0.1, -0.05, 0.3));
+  struct Config {
+    RenderMode mode;
+    double radius_px, radius_ndc;
+    int k;
+  };
+  // Radii spanning one and several 4- / 8-column chunks.
+  const Config configs[] = {{RenderMode::kZBuffer, 0.0, 0.01, 1},
+                            {RenderMode::kZBuffer, 1.5, 0.01, 1},
+                            {RenderMode::kZBuffer, 5.3, 0.01, 1},
+                            {RenderMode::kSoft, 0, 0.05, 3},
+                            {RenderMode::kSoft, 0, 0.3, 10}};
+  for (const Config& cfg : configs) {
+    RenderOptions options;
+    options.mode = cfg.mode;
+    options.width = camera.width;
+    options.height = camera.height;
+    options.radius_px = cfg.radius_px;
+    options.radius_ndc = cfg.radius_ndc;
+    options.points_per_pixel = cfg.k;
+    options.output_index = true;
+    options.output_float_rgb = true;
+    const bool previous = SetRendererSimdEnabled(true);
+    const RenderedFrame simd =
+        RenderFrame(cloud, camera, cam_from_world, options);
+    SetRendererSimdEnabled(false);
+    const RenderedFrame scalar =
+        RenderFrame(cloud, camera, cam_from_world, options);
+    SetRendererSimdEnabled(previous);
+    const std::string what = ToString(cfg.mode) + " r_px " +
+                             std::to_string(cfg.radius_px) + " r_ndc " +
+                             std::to_string(cfg.radius_ndc);
+    EXPECT_GT(simd.num_valid, camera.width * camera.height / 4) << what;
+    EXPECT_EQ(simd.num_projected, scalar.num_projected) << what;
+    EXPECT_TRUE(SameBytes(simd.rgb, scalar.rgb)) << what;
+    EXPECT_TRUE(SameBytes(simd.rgb_float, scalar.rgb_float)) << what;
+    EXPECT_TRUE(SameBytes(simd.depth, scalar.depth)) << what;
+    EXPECT_TRUE(SameBytes(simd.mask, scalar.mask)) << what;
+    EXPECT_TRUE(SameBytes(simd.index, scalar.index)) << what;
+  }
+}
+
 // ---- Camera resizing to the output size ----
 
 TEST(Renderer, CameraIsRescaledToOutputSize) {
