@@ -1254,55 +1254,19 @@ DynamicEditResult RenderWithDynamicEdits(
       result.render_ids.push_back(o.id);
     RenderOptions ro = render_options;
     ro.output_instance = true;
-    ro.num_threads = 1;
-    const int num_frames = static_cast<int>(cam_from_world.size());
-    result.frames.resize(num_frames);
-    const int threads =
-        options.num_threads > 0
-            ? options.num_threads
-            : (render_options.num_threads > 0 ? render_options.num_threads
-                                              : omp_get_max_threads());
-    std::exception_ptr error;
-#pragma omp parallel num_threads(std::max(1, std::min(threads, num_frames)))
-    {
-      size_t max_extra = 0;
-      for (int f = 0; f < num_frames; ++f) {
-        size_t extra = 0;
-        for (const DynamicObject& o : scene.objects) {
-          if (o.poses[f]) {
-            extra += o.points_in_object.size() * o.poses[f]->subsamples *
-                     o.poses[f]->subsamples;
-          }
-        }
-        max_extra = std::max(max_extra, extra);
-      }
-      PointCloud buffer;
-      const size_t capacity = scene.background.size() + max_extra;
-      buffer.positions.reserve(capacity);
-      buffer.colors.reserve(scene.background.HasColors() ? capacity : 0);
-      buffer.instance_ids.reserve(capacity);
-      buffer.positions = scene.background.positions;
-      buffer.colors = scene.background.colors;
-      buffer.instance_ids = scene.background.instance_ids;
-      const size_t nb = scene.background.size();
-#pragma omp for schedule(dynamic, 1)
-      for (int f = 0; f < num_frames; ++f) {
-        try {
-          buffer.positions.resize(nb);
-          buffer.colors.resize(scene.background.HasColors() ? nb : 0);
-          buffer.instance_ids.resize(nb);
-          AppendObjects(scene, f, &buffer);
-          result.frames[f] = buffer.empty()
-                                 ? EmptyFrame(ro)
-                                 : RenderFrame(buffer, CameraOf(cameras, f),
-                                               cam_from_world[f], ro);
-        } catch (...) {
-#pragma omp critical(geodrive_dynamic_edit_error)
-          if (!error) error = std::current_exception();
-        }
-      }
-    }
-    if (error) std::rethrow_exception(error);
+    ro.num_threads = options.num_threads > 0 ? options.num_threads
+                                             : (render_options.num_threads > 0
+                                                    ? render_options.num_threads
+                                                    : omp_get_max_threads());
+    // One depth test per frame over the background (packed once per clip)
+    // and that frame's moved objects, so objects and background occlude each
+    // other correctly.
+    RenderResult rendered;
+    RenderFramesWithDynamicPoints(
+        scene.background,
+        [&scene](int f, PointCloud* out) { AppendObjects(scene, f, out); },
+        cameras, cam_from_world, ro, &rendered);
+    result.frames = std::move(rendered.frames);
   }
   result.summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)

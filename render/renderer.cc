@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <sstream>
 
@@ -89,26 +90,64 @@ inline uint32_t SignBit(float f) {
   return u >> 31;
 }
 
-// The cloud's positions as structure-of-arrays (built once per RenderFrames
-// call).
-struct SoaPositions {
+const Color3u8 kDefaultColor(200, 200, 200);
+
+// The cloud as the kernels read it: positions as structure of arrays, colours
+// in the form the mode needs, instance ids when asked for. Built once per
+// RenderFramesInto call, or once per thread plus a per-frame tail of dynamic
+// points (RenderFramesWithDynamicPoints).
+struct PackedCloud {
   std::vector<float> x, y, z;
-  explicit SoaPositions(const PointCloud& cloud) {
-    const size_t n = cloud.size();
+  std::vector<uint32_t> rgbx;     // zbuffer: RGBX words + black sentinel at [n]
+  std::vector<float> colors01;    // soft: RGB in [0, 1]
+  std::vector<int32_t> instance;  // output_instance: id per point (-1 = none)
+                                  // + sentinel -1 at [n]
+  size_t size() const { return x.size(); }
+
+  // Makes points [offset, offset + cloud.size()) the given cloud's, dropping
+  // anything after them.
+  void Assign(size_t offset,
+              const PointCloud& cloud,
+              const RenderOptions& options) {
+    const size_t m = cloud.size(), n = offset + m;
     x.resize(n);
     y.resize(n);
     z.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-      x[i] = cloud.positions[i][0];
-      y[i] = cloud.positions[i][1];
-      z[i] = cloud.positions[i][2];
+    for (size_t i = 0; i < m; ++i) {
+      x[offset + i] = cloud.positions[i][0];
+      y[offset + i] = cloud.positions[i][1];
+      z[offset + i] = cloud.positions[i][2];
+    }
+    const bool has_colors = cloud.HasColors();
+    if (options.mode == RenderMode::kZBuffer) {
+      rgbx.resize(n + 1);
+      for (size_t i = 0; i < m; ++i) {
+        const Color3u8& c = has_colors ? cloud.colors[i] : kDefaultColor;
+        rgbx[offset + i] =
+            uint32_t{c[0]} | (uint32_t{c[1]} << 8) | (uint32_t{c[2]} << 16);
+      }
+      rgbx[n] = 0;  // little-endian RGBX black: empty pixels read it
+    } else {
+      colors01.resize(3 * n);
+      for (size_t i = 0; i < m; ++i) {
+        const Color3u8& c = has_colors ? cloud.colors[i] : kDefaultColor;
+        for (int ch = 0; ch < 3; ++ch)
+          colors01[3 * (offset + i) + ch] = c[ch] / 255.0f;
+      }
+    }
+    if (options.output_instance) {
+      instance.resize(n + 1);
+      const bool has_ids = cloud.HasInstanceIds();
+      for (size_t i = 0; i < m; ++i)
+        instance[offset + i] = has_ids ? cloud.instance_ids[i] : -1;
+      instance[n] = -1;  // sentinel: pixels without a point
     }
   }
 };
 
 // Projects points [base, base + n) to shifted pixel coordinates; ok = near < z
 // < far.
-inline void ProjectBlock(const SoaPositions& soa,
+inline void ProjectBlock(const PackedCloud& soa,
                          int base,
                          int n,
                          const FrameProjector& p,
@@ -185,7 +224,7 @@ void AllocateOutputs(const RenderOptions& options, RenderedFrame* frame) {
 }
 
 // Writes the optional per-pixel index / instance outputs from scratch.index.
-void WriteIndexOutputs(const PointCloud& cloud,
+void WriteIndexOutputs(const PackedCloud& cloud,
                        const RenderOptions& options,
                        const std::vector<int32_t>& index,
                        RenderedFrame* frame) {
@@ -193,14 +232,14 @@ void WriteIndexOutputs(const PointCloud& cloud,
   if (options.output_index)
     std::memcpy(frame->index.ptr<int32_t>(), index.data(), n * 4);
   if (options.output_instance) {
+    // Branch-free: index -1 maps to the sentinel slot (id -1) after the points.
     int32_t* out = frame->instance.ptr<int32_t>();
-    const bool has = cloud.HasInstanceIds();
+    const int32_t* ids = cloud.instance.data();
+    const uint32_t sentinel = static_cast<uint32_t>(cloud.size());
     for (int i = 0; i < n; ++i)
-      out[i] = (index[i] >= 0 && has) ? cloud.instance_ids[index[i]] : -1;
+      out[i] = ids[std::min(static_cast<uint32_t>(index[i]), sentinel)];
   }
 }
-
-const Color3u8 kDefaultColor(200, 200, 200);
 
 // Depth-ordered key of a point: for z > 0 the float bits are monotonic, so
 // min(key) picks the nearest point and, among equal depths, the smallest
@@ -343,9 +382,7 @@ int64_t SplatDisks(const ProjectedBlock& blk,
 #endif
 
 GEODRIVE_HOT_CLONES
-void RenderZBuffer(const PointCloud& cloud,
-                   const SoaPositions& soa,
-                   const std::vector<uint32_t>& colors_rgbx,
+void RenderZBuffer(const PackedCloud& soa,
                    const FrameProjector& proj,
                    const RenderOptions& options,
                    Scratch* scratch,
@@ -360,7 +397,7 @@ void RenderZBuffer(const PointCloud& cloud,
   if (keys.size() != npix + 1) keys.assign(npix + 1, kEmptyKey);
   uint64_t* kb = keys.data();
   ProjectedBlock& blk = scratch->block;
-  const int n = static_cast<int>(cloud.size());
+  const int n = static_cast<int>(soa.size());
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   int64_t projected = 0;
   const float r = static_cast<float>(options.radius_px);
@@ -400,7 +437,7 @@ void RenderZBuffer(const PointCloud& cloud,
   std::vector<int32_t>& index = scratch->index;
   index.resize(npix);
   int32_t* ib = index.data();
-  const uint32_t* colors = colors_rgbx.data();
+  const uint32_t* colors = soa.rgbx.data();
   uint8_t* rgb = frame->rgb.ptr<uint8_t>();
   uint32_t* depth = reinterpret_cast<uint32_t*>(frame->depth.ptr<float>());
   uint8_t* mask = frame->mask.ptr<uint8_t>();
@@ -624,9 +661,7 @@ int64_t SoftSplat(const SoftSplatArgs& a) {
 // only ever append. The distance is recomputed at compositing time from the
 // projected (u, v).
 GEODRIVE_HOT_CLONES
-void RenderSoft(const PointCloud& cloud,
-                const SoaPositions& soa,
-                const std::vector<float>& colors01,
+void RenderSoft(const PackedCloud& soa,
                 const FrameProjector& proj,
                 const RenderOptions& options,
                 Scratch* scratch,
@@ -634,7 +669,7 @@ void RenderSoft(const PointCloud& cloud,
   const int w = options.width, h = options.height;
   const size_t npix = static_cast<size_t>(w) * h;
   const int k_max = options.points_per_pixel;
-  const int n = static_cast<int>(cloud.size());
+  const int n = static_cast<int>(soa.size());
   scratch->pu.resize(n);
   scratch->pv.resize(n);
   scratch->pz.resize(n);
@@ -711,9 +746,10 @@ void RenderSoft(const PointCloud& cloud,
   SoftState& state = scratch->soft;
   state.Reset(npix);
   const float inv_r2 = 1.0f / r2;
-  SoftSplatArgs args{pu, pv,     colors01.data(), order.data(), num,
-                     w,  h,      k_max,           r_px_bound,   inv_s2,
-                     r2, inv_r2, &state};
+  SoftSplatArgs args{
+      pu,    pv,    soa.colors01.data(), order.data(), num, w,
+      h,     k_max, r_px_bound,          inv_s2,       r2,  inv_r2,
+      &state};
   frame->num_projected = SoftSplat(args);
 
   // Resolve.
@@ -746,25 +782,6 @@ void RenderSoft(const PointCloud& cloud,
   frame->num_valid = valid;
 }
 
-std::vector<float> Colors01(const PointCloud& cloud) {
-  std::vector<float> out(3 * cloud.size());
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const Color3u8& c = cloud.HasColors() ? cloud.colors[i] : kDefaultColor;
-    for (int ch = 0; ch < 3; ++ch) out[3 * i + ch] = c[ch] / 255.0f;
-  }
-  return out;
-}
-
-// Colours as little-endian RGBX words, plus a black sentinel at index n.
-std::vector<uint32_t> ColorsRgbx(const PointCloud& cloud) {
-  std::vector<uint32_t> out(cloud.size() + 1, 0u);
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const Color3u8& c = cloud.HasColors() ? cloud.colors[i] : kDefaultColor;
-    out[i] = uint32_t{c[0]} | (uint32_t{c[1]} << 8) | (uint32_t{c[2]} << 16);
-  }
-  return out;
-}
-
 void CheckCloud(const PointCloud& cloud) {
   GEODRIVE_CHECK_INPUT(!cloud.empty(), "render: the point cloud is empty");
   GEODRIVE_CHECK_INPUT(cloud.size() < (1ull << 31),
@@ -783,10 +800,7 @@ PinholeCamera FrameCamera(const PinholeCamera& camera,
                       options.pixel_convention);
 }
 
-void RenderOne(const PointCloud& cloud,
-               const SoaPositions& soa,
-               const std::vector<float>& colors01,
-               const std::vector<uint32_t>& colors_rgbx,
+void RenderOne(const PackedCloud& cloud,
                const PinholeCamera& camera,
                const Rigid3d& cam_from_world,
                const RenderOptions& options,
@@ -795,7 +809,7 @@ void RenderOne(const PointCloud& cloud,
   const FrameProjector proj(camera, cam_from_world, options);
   AllocateOutputs(options, frame);
   if (options.mode == RenderMode::kZBuffer) {
-    RenderZBuffer(cloud, soa, colors_rgbx, proj, options, scratch, frame);
+    RenderZBuffer(cloud, proj, options, scratch, frame);
     if (options.hole_fill) {
       for (int it = 0; it < options.hole_fill_iterations; ++it) {
         const int64_t filled = HoleFillPass(options, &scratch->index, frame);
@@ -806,7 +820,7 @@ void RenderOne(const PointCloud& cloud,
     if (options.output_float_rgb)
       frame->rgb.convertTo(frame->rgb_float, CV_32FC3, 1.0 / 255);
   } else {
-    RenderSoft(cloud, soa, colors01, proj, options, scratch, frame);
+    RenderSoft(cloud, proj, options, scratch, frame);
   }
   WriteIndexOutputs(cloud, options, scratch->index, frame);
 }
@@ -903,30 +917,30 @@ RenderResult RenderFrames(const PointCloud& cloud_in_world,
   return result;
 }
 
-void RenderFramesInto(const PointCloud& cloud_in_world,
-                      const std::vector<PinholeCamera>& cameras,
-                      const std::vector<Rigid3d>& cam_from_world,
-                      const RenderOptions& options,
-                      RenderResult* result_out) {
-  const auto start = std::chrono::steady_clock::now();
+namespace {
+
+// Checks the options, poses and cameras shared by the RenderFrames* entry
+// points; returns the per-frame cameras at the output size.
+std::vector<PinholeCamera> CheckFrames(
+    const std::vector<PinholeCamera>& cameras,
+    const std::vector<Rigid3d>& cam_from_world,
+    const RenderOptions& options) {
   options.Check();
-  CheckCloud(cloud_in_world);
   GEODRIVE_CHECK_INPUT(!cam_from_world.empty(),
                        "render: no camera poses given");
   GEODRIVE_CHECK_INPUT(
       cameras.size() == 1 || cameras.size() == cam_from_world.size(),
       "render: ", cameras.size(), " cameras for ", cam_from_world.size(),
       " poses (need 1 or one per pose)");
-  const int num_frames = static_cast<int>(cam_from_world.size());
   if (options.mode == RenderMode::kSoft) {
-    const double bytes = static_cast<double>(options.width) * options.height *
-                         options.points_per_pixel * sizeof(uint64_t);
+    const double bytes =
+        static_cast<double>(options.width) * options.height * sizeof(float) * 7;
     GEODRIVE_CHECK_INPUT(bytes <= 8.0 * (1ull << 30),
                          "render options: soft mode at ", options.width, "x",
-                         options.height, " with K = ", options.points_per_pixel,
-                         " needs ", bytes / (1ull << 30),
+                         options.height, " needs ", bytes / (1ull << 30),
                          " GiB of scratch per thread (limit 8 GiB)");
   }
+  const int num_frames = static_cast<int>(cam_from_world.size());
   std::vector<PinholeCamera> frame_cameras(num_frames);
   for (int f = 0; f < num_frames; ++f) {
     const std::string what = "render: frame " + std::to_string(f);
@@ -934,17 +948,49 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
     frame_cameras[f] = FrameCamera(cameras[cameras.size() == 1 ? 0 : f],
                                    options, what + " camera");
   }
-  const std::vector<float> colors01 = options.mode == RenderMode::kSoft
-                                          ? Colors01(cloud_in_world)
-                                          : std::vector<float>();
+  return frame_cameras;
+}
 
-  const std::vector<uint32_t> colors_rgbx = options.mode == RenderMode::kZBuffer
-                                                ? ColorsRgbx(cloud_in_world)
-                                                : std::vector<uint32_t>();
-  const SoaPositions soa(cloud_in_world);
+void Summarise(int64_t num_points,
+               std::chrono::steady_clock::time_point start,
+               RenderResult* result) {
+  RenderSummary& s = result->summary;
+  s = RenderSummary();
+  const int num_frames = static_cast<int>(result->frames.size());
+  s.num_frames = num_frames;
+  s.num_points = num_points;
+  s.min_coverage = 1.0;
+  s.max_coverage = 0.0;
+  double sum = 0;
+  for (int f = 0; f < num_frames; ++f) {
+    const double c = result->frames[f].coverage();
+    sum += c;
+    s.min_coverage = std::min(s.min_coverage, c);
+    s.max_coverage = std::max(s.max_coverage, c);
+    if (result->frames[f].num_valid == 0) s.empty_frames.push_back(f);
+  }
+  s.mean_coverage = num_frames > 0 ? sum / num_frames : 0.0;
+  s.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+          .count();
+}
+
+}  // namespace
+
+void RenderFramesInto(const PointCloud& cloud_in_world,
+                      const std::vector<PinholeCamera>& cameras,
+                      const std::vector<Rigid3d>& cam_from_world,
+                      const RenderOptions& options,
+                      RenderResult* result_out) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<PinholeCamera> frame_cameras =
+      CheckFrames(cameras, cam_from_world, options);
+  CheckCloud(cloud_in_world);
+  const int num_frames = static_cast<int>(cam_from_world.size());
+  PackedCloud packed;
+  packed.Assign(0, cloud_in_world, options);
   RenderResult& result = *result_out;
   result.frames.resize(num_frames);
-  result.summary = RenderSummary();
   const int threads =
       options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
 #pragma omp parallel num_threads(std::min(threads, num_frames))
@@ -955,28 +1001,63 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
     thread_local Scratch scratch;
 #pragma omp for schedule(dynamic, 1)
     for (int f = 0; f < num_frames; ++f) {
-      RenderOne(cloud_in_world, soa, colors01, colors_rgbx, frame_cameras[f],
-                cam_from_world[f], options, &scratch, &result.frames[f]);
+      RenderOne(packed, frame_cameras[f], cam_from_world[f], options, &scratch,
+                &result.frames[f]);
     }
   }
+  Summarise(static_cast<int64_t>(cloud_in_world.size()), start, &result);
+}
 
-  RenderSummary& s = result.summary;
-  s.num_frames = num_frames;
-  s.num_points = static_cast<int64_t>(cloud_in_world.size());
-  s.min_coverage = 1.0;
-  s.max_coverage = 0.0;
-  double sum = 0;
-  for (int f = 0; f < num_frames; ++f) {
-    const double c = result.frames[f].coverage();
-    sum += c;
-    s.min_coverage = std::min(s.min_coverage, c);
-    s.max_coverage = std::max(s.max_coverage, c);
-    if (result.frames[f].num_valid == 0) s.empty_frames.push_back(f);
+void RenderFramesWithDynamicPoints(const PointCloud& static_cloud,
+                                   const DynamicPointsFn& dynamic_points,
+                                   const std::vector<PinholeCamera>& cameras,
+                                   const std::vector<Rigid3d>& cam_from_world,
+                                   const RenderOptions& options,
+                                   RenderResult* result_out) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<PinholeCamera> frame_cameras =
+      CheckFrames(cameras, cam_from_world, options);
+  GEODRIVE_CHECK_INPUT(static_cloud.size() < (1ull << 30),
+                       "render: the static cloud has ", static_cloud.size(),
+                       " points (at most 2^30 supported)");
+  static_cloud.Check("render: static point cloud");
+  const int num_frames = static_cast<int>(cam_from_world.size());
+  const size_t num_static = static_cloud.size();
+  RenderResult& result = *result_out;
+  result.frames.resize(num_frames);
+  const int threads =
+      options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
+  std::exception_ptr error;
+#pragma omp parallel num_threads(std::min(threads, num_frames))
+  {
+    thread_local Scratch scratch;
+    // This thread's packed static cloud (its buffers persist across calls);
+    // each frame replaces the dynamic tail after it.
+    thread_local PackedCloud packed;
+    thread_local PointCloud dynamic;
+    packed.Assign(0, static_cloud, options);
+#pragma omp for schedule(dynamic, 1)
+    for (int f = 0; f < num_frames; ++f) {
+      try {
+        dynamic.positions.clear();
+        dynamic.colors.clear();
+        dynamic.instance_ids.clear();
+        dynamic_points(f, &dynamic);
+        dynamic.Check("render: dynamic points of frame " + std::to_string(f));
+        GEODRIVE_CHECK_INPUT(dynamic.size() < (1ull << 30), "render: frame ", f,
+                             " has ", dynamic.size(),
+                             " dynamic points (at most 2^30 supported)");
+        packed.Assign(num_static, dynamic, options);
+        RenderOne(packed, frame_cameras[f], cam_from_world[f], options,
+                  &scratch, &result.frames[f]);
+      } catch (...) {
+#pragma omp critical(geodrive_render_dynamic_error)
+        if (!error) error = std::current_exception();
+      }
+    }
   }
-  s.mean_coverage = sum / num_frames;
-  s.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
-          .count();
+  if (error) std::rethrow_exception(error);
+  Summarise(static_cast<int64_t>(num_static), start, &result);
 }
 
 }  // namespace geodrive

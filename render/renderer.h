@@ -36,6 +36,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -152,6 +153,23 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
                       const std::vector<Rigid3d>& cam_from_world,
                       const RenderOptions& options,
                       RenderResult* result);
+
+// Produces the dynamic points of one frame (cleared before each call). Called
+// once per frame, possibly from several threads at once.
+using DynamicPointsFn = std::function<void(int frame, PointCloud* points)>;
+
+// Renders a static cloud plus, in each frame, the points `dynamic_points`
+// produces for it, in one depth test per frame. Point indices (output_index)
+// are the static points first (0..S-1), then the frame's dynamic points (S..):
+// the result equals RenderFramesInto on the concatenated cloud. The static
+// cloud is validated and packed once per call (not once per frame); the static
+// cloud may be empty. Errors thrown by `dynamic_points` are re-thrown.
+void RenderFramesWithDynamicPoints(const PointCloud& static_cloud,
+                                   const DynamicPointsFn& dynamic_points,
+                                   const std::vector<PinholeCamera>& cameras,
+                                   const std::vector<Rigid3d>& cam_from_world,
+                                   const RenderOptions& options,
+                                   RenderResult* result);
 
 // Testing hook: enables or disables the AVX2 splat kernels (on by default
 // where the CPU has AVX2). Both paths give byte-identical output; returns the

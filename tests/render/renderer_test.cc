@@ -438,6 +438,85 @@ TEST(Renderer, SimdAndScalarKernelsGiveIdenticalBytes) {
   }
 }
 
+// ---- Static cloud plus per-frame dynamic points ----
+
+TEST(Renderer, DynamicPointsEqualRenderingTheConcatenatedCloud) {
+  const PinholeCamera camera(60, 64, 44.0, 26.0, 80, 56);
+  PointCloud static_cloud = RandomOverlappingCloud(1500);
+  static_cloud.instance_ids.assign(static_cloud.size(), -1);
+  const PointCloud object_base = RandomOverlappingCloud(300);
+  std::vector<Rigid3d> poses;
+  for (int f = 0; f < 5; ++f)
+    poses.emplace_back(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.01 * f, 0)),
+                       Eigen::Vector3d(0.05 * f, 0, -0.1 * f));
+  // Frame f: the object shifted by f * 0.1 m, instance id 7; no object in
+  // frame 3 (an empty dynamic set).
+  auto object_at = [&](int f) {
+    PointCloud o;
+    if (f == 3) return o;
+    for (size_t i = 0; i < object_base.size(); ++i) {
+      o.positions.push_back(object_base.positions[i] +
+                            Eigen::Vector3f(0.1f * f, 0.0f, -0.5f));
+      o.colors.push_back(object_base.colors[i]);
+      o.instance_ids.push_back(7);
+    }
+    return o;
+  };
+  for (RenderMode mode : {RenderMode::kZBuffer, RenderMode::kSoft}) {
+    RenderOptions options;
+    options.mode = mode;
+    options.width = camera.width;
+    options.height = camera.height;
+    options.radius_px = 1.5;
+    options.radius_ndc = 0.05;
+    options.output_index = true;
+    options.output_instance = true;
+    options.num_threads = 2;
+    RenderResult dynamic;
+    RenderFramesWithDynamicPoints(
+        static_cloud, [&](int f, PointCloud* out) { *out = object_at(f); },
+        {camera}, poses, options, &dynamic);
+    ASSERT_EQ(dynamic.frames.size(), poses.size());
+    int object_pixels = 0;
+    for (size_t f = 0; f < poses.size(); ++f) {
+      PointCloud all = static_cloud;
+      const PointCloud o = object_at(static_cast<int>(f));
+      all.positions.insert(all.positions.end(), o.positions.begin(),
+                           o.positions.end());
+      all.colors.insert(all.colors.end(), o.colors.begin(), o.colors.end());
+      all.instance_ids.insert(all.instance_ids.end(), o.instance_ids.begin(),
+                              o.instance_ids.end());
+      const RenderedFrame ref = RenderFrame(all, camera, poses[f], options);
+      const RenderedFrame& got = dynamic.frames[f];
+      EXPECT_TRUE(SameBytes(ref.rgb, got.rgb)) << ToString(mode) << " " << f;
+      EXPECT_TRUE(SameBytes(ref.depth, got.depth)) << f;
+      EXPECT_TRUE(SameBytes(ref.index, got.index)) << f;
+      EXPECT_TRUE(SameBytes(ref.instance, got.instance)) << f;
+      EXPECT_EQ(ref.num_projected, got.num_projected) << f;
+      object_pixels += cv::countNonZero(got.instance == 7);
+    }
+    EXPECT_GT(object_pixels, 100) << ToString(mode);
+  }
+  // Only dynamic points, and an error from the callback.
+  RenderOptions options;
+  options.width = camera.width;
+  options.height = camera.height;
+  RenderResult only_dynamic;
+  RenderFramesWithDynamicPoints(
+      PointCloud(), [&](int f, PointCloud* out) { *out = object_at(f); },
+      {camera}, poses, options, &only_dynamic);
+  EXPECT_EQ(only_dynamic.frames[3].num_valid, 0);
+  EXPECT_GT(only_dynamic.frames[0].num_valid, 0);
+  RenderResult failed;
+  EXPECT_THROW(RenderFramesWithDynamicPoints(
+                   static_cloud,
+                   [](int f, PointCloud* out) {
+                     out->positions.emplace_back(0, 0, f == 2 ? NAN : 1.0f);
+                   },
+                   {camera}, poses, options, &failed),
+               InputError);
+}
+
 // ---- Camera resizing to the output size ----
 
 TEST(Renderer, CameraIsRescaledToOutputSize) {
