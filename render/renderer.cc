@@ -370,6 +370,108 @@ int64_t SplatDisks(const ProjectedBlock& blk,
   return SplatDisksScalar(blk, m, base, r, w, h, kb);
 }
 
+// Z-buffer resolve: key -> RGB (empty pixels read the black sentinel colour
+// at index n), depth, mask and optionally the point index; every key is reset
+// to empty. Returns the number of valid pixels. The AVX2 version writes the
+// same bytes.
+struct ZResolveArgs {
+  uint64_t* keys;
+  size_t npix;
+  const uint32_t* colors;  // RGBX words, black sentinel at [sentinel]
+  uint32_t sentinel;
+  uint8_t* rgb;
+  uint32_t* depth;  // float bits
+  uint8_t* mask;
+  int32_t* index;  // nullptr: not wanted
+};
+
+int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
+  int64_t valid = 0;
+  for (size_t p = begin; p < a.npix; ++p) {
+    const uint64_t key = a.keys[p];
+    a.keys[p] = kEmptyKey;
+    const uint32_t is_valid = key != kEmptyKey;
+    const uint32_t idx =
+        is_valid ? static_cast<uint32_t>(key & 0xffffffffu) : a.sentinel;
+    const uint32_t c = a.colors[idx];
+    // Bytes 0..2 of the little-endian RGBX word are R, G, B.
+    a.rgb[3 * p] = static_cast<uint8_t>(c);
+    a.rgb[3 * p + 1] = static_cast<uint8_t>(c >> 8);
+    a.rgb[3 * p + 2] = static_cast<uint8_t>(c >> 16);
+    a.depth[p] = is_valid ? static_cast<uint32_t>(key >> 32) : 0u;
+    a.mask[p] = static_cast<uint8_t>(0u - is_valid);
+    if (a.index) a.index[p] = is_valid ? static_cast<int32_t>(idx) : -1;
+    valid += is_valid;
+  }
+  return valid;
+}
+
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+// Eight pixels at a time: split the keys into index and depth halves, gather
+// the colours, shuffle RGBX to RGB.
+__attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
+  const __m256i empty = _mm256_set1_epi64x(static_cast<long long>(kEmptyKey));
+  const __m256i even_odd = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+  const __m256i empty_hi = _mm256_set1_epi32(0x7fffffff);
+  const __m256i sentinel = _mm256_set1_epi32(static_cast<int>(a.sentinel));
+  // Per 128-bit lane: RGBX x 4 -> RGB x 4 (12 bytes), and byte 0 of each
+  // 32-bit word -> 4 bytes.
+  const __m256i rgb_shuffle =
+      _mm256_setr_epi8(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1,
+                       0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1);
+  const __m256i byte0_shuffle = _mm256_setr_epi8(
+      0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12,
+      -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
+  int64_t valid = 0;
+  size_t p = 0;
+  // The second 16-byte RGB store reaches 4 bytes past the 8 pixels: stop
+  // while 2 more pixels remain, the scalar tail does the rest.
+  for (; p + 10 <= a.npix; p += 8) {
+    __m256i* kp = reinterpret_cast<__m256i*>(a.keys + p);
+    const __m256i k0 = _mm256_loadu_si256(kp);
+    const __m256i k1 = _mm256_loadu_si256(kp + 1);
+    _mm256_storeu_si256(kp, empty);
+    _mm256_storeu_si256(kp + 1, empty);
+    const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
+    const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
+    const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
+    const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
+    const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
+    const __m256i idx = _mm256_blendv_epi8(lo, sentinel, invalid);
+    const __m256i col =
+        _mm256_i32gather_epi32(reinterpret_cast<const int*>(a.colors), idx, 4);
+    const __m256i rgb = _mm256_shuffle_epi8(col, rgb_shuffle);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p),
+                     _mm256_castsi256_si128(rgb));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p + 12),
+                     _mm256_extracti128_si256(rgb, 1));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.depth + p),
+                        _mm256_andnot_si256(invalid, hi));
+    if (a.index) {
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p),
+                          _mm256_or_si256(lo, invalid));
+    }
+    const __m256i m = _mm256_shuffle_epi8(
+        _mm256_andnot_si256(invalid, _mm256_set1_epi32(0xff)), byte0_shuffle);
+    const uint64_t mask8 = static_cast<uint32_t>(_mm256_extract_epi32(m, 0)) |
+                           (static_cast<uint64_t>(static_cast<uint32_t>(
+                                _mm256_extract_epi32(m, 4)))
+                            << 32);
+    std::memcpy(a.mask + p, &mask8, 8);
+    valid += 8 - __builtin_popcount(static_cast<unsigned>(
+                     _mm256_movemask_ps(_mm256_castsi256_ps(invalid))));
+  }
+  return valid + ResolveZScalar(a, p);
+}
+#endif
+
+int64_t ResolveZBuffer(const ZResolveArgs& a) {
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2()) return ResolveZAvx2(a);
+#endif
+  return ResolveZScalar(a, 0);
+}
+
 // Z-buffer. Each pixel keeps the minimum key (z, index), so among equal depths
 // the smallest index wins, whatever the processing order or thread count.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && \
@@ -432,34 +534,21 @@ void RenderZBuffer(const PackedCloud& soa,
   }
   frame->num_projected = projected;
 
-  // Resolve (branch-free: empty pixels read the black sentinel colour at
-  // index n), and clear the keys for the next frame.
+  // Resolve, and clear the keys for the next frame. The per-pixel point index
+  // is kept only when something reads it.
   std::vector<int32_t>& index = scratch->index;
-  index.resize(npix);
-  int32_t* ib = index.data();
-  const uint32_t* colors = soa.rgbx.data();
-  uint8_t* rgb = frame->rgb.ptr<uint8_t>();
-  uint32_t* depth = reinterpret_cast<uint32_t*>(frame->depth.ptr<float>());
-  uint8_t* mask = frame->mask.ptr<uint8_t>();
-  int64_t valid = 0;
-  const uint32_t sentinel = static_cast<uint32_t>(n);
-  for (size_t p = 0; p < npix; ++p) {
-    const uint64_t key = kb[p];
-    kb[p] = kEmptyKey;
-    const uint32_t is_valid = key != kEmptyKey;
-    const uint32_t idx =
-        is_valid ? static_cast<uint32_t>(key & 0xffffffffu) : sentinel;
-    const uint32_t c = colors[idx];
-    // Bytes 0..2 of the little-endian RGBX word are R, G, B.
-    rgb[3 * p] = static_cast<uint8_t>(c);
-    rgb[3 * p + 1] = static_cast<uint8_t>(c >> 8);
-    rgb[3 * p + 2] = static_cast<uint8_t>(c >> 16);
-    depth[p] = is_valid ? static_cast<uint32_t>(key >> 32) : 0u;
-    mask[p] = static_cast<uint8_t>(0u - is_valid);
-    ib[p] = is_valid ? static_cast<int32_t>(idx) : -1;
-    valid += is_valid;
-  }
-  frame->num_valid = valid;
+  const bool need_index =
+      options.hole_fill || options.output_index || options.output_instance;
+  if (need_index) index.resize(npix);
+  ZResolveArgs args{kb,
+                    npix,
+                    soa.rgbx.data(),
+                    static_cast<uint32_t>(n),
+                    frame->rgb.ptr<uint8_t>(),
+                    reinterpret_cast<uint32_t*>(frame->depth.ptr<float>()),
+                    frame->mask.ptr<uint8_t>(),
+                    need_index ? index.data() : nullptr};
+  frame->num_valid = ResolveZBuffer(args);
 }
 
 // One hole-filling pass; returns the number of pixels filled.

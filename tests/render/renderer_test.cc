@@ -409,32 +409,34 @@ TEST(Renderer, SimdAndScalarKernelsGiveIdenticalBytes) {
                             {RenderMode::kSoft, 0, 0.05, 3},
                             {RenderMode::kSoft, 0, 0.3, 10}};
   for (const Config& cfg : configs) {
-    RenderOptions options;
-    options.mode = cfg.mode;
-    options.width = camera.width;
-    options.height = camera.height;
-    options.radius_px = cfg.radius_px;
-    options.radius_ndc = cfg.radius_ndc;
-    options.points_per_pixel = cfg.k;
-    options.output_index = true;
-    options.output_float_rgb = true;
-    const bool previous = SetRendererSimdEnabled(true);
-    const RenderedFrame simd =
-        RenderFrame(cloud, camera, cam_from_world, options);
-    SetRendererSimdEnabled(false);
-    const RenderedFrame scalar =
-        RenderFrame(cloud, camera, cam_from_world, options);
-    SetRendererSimdEnabled(previous);
-    const std::string what = ToString(cfg.mode) + " r_px " +
-                             std::to_string(cfg.radius_px) + " r_ndc " +
-                             std::to_string(cfg.radius_ndc);
-    EXPECT_GT(simd.num_valid, camera.width * camera.height / 4) << what;
-    EXPECT_EQ(simd.num_projected, scalar.num_projected) << what;
-    EXPECT_TRUE(SameBytes(simd.rgb, scalar.rgb)) << what;
-    EXPECT_TRUE(SameBytes(simd.rgb_float, scalar.rgb_float)) << what;
-    EXPECT_TRUE(SameBytes(simd.depth, scalar.depth)) << what;
-    EXPECT_TRUE(SameBytes(simd.mask, scalar.mask)) << what;
-    EXPECT_TRUE(SameBytes(simd.index, scalar.index)) << what;
+    for (const bool with_index : {true, false}) {
+      RenderOptions options;
+      options.mode = cfg.mode;
+      options.width = camera.width;
+      options.height = camera.height;
+      options.radius_px = cfg.radius_px;
+      options.radius_ndc = cfg.radius_ndc;
+      options.points_per_pixel = cfg.k;
+      options.output_index = with_index;
+      options.output_float_rgb = true;
+      const bool previous = SetRendererSimdEnabled(true);
+      const RenderedFrame simd =
+          RenderFrame(cloud, camera, cam_from_world, options);
+      SetRendererSimdEnabled(false);
+      const RenderedFrame scalar =
+          RenderFrame(cloud, camera, cam_from_world, options);
+      SetRendererSimdEnabled(previous);
+      const std::string what = ToString(cfg.mode) + " r_px " +
+                               std::to_string(cfg.radius_px) + " r_ndc " +
+                               std::to_string(cfg.radius_ndc);
+      EXPECT_GT(simd.num_valid, camera.width * camera.height / 4) << what;
+      EXPECT_EQ(simd.num_projected, scalar.num_projected) << what;
+      EXPECT_TRUE(SameBytes(simd.rgb, scalar.rgb)) << what;
+      EXPECT_TRUE(SameBytes(simd.rgb_float, scalar.rgb_float)) << what;
+      EXPECT_TRUE(SameBytes(simd.depth, scalar.depth)) << what;
+      EXPECT_TRUE(SameBytes(simd.mask, scalar.mask)) << what;
+      EXPECT_TRUE(SameBytes(simd.index, scalar.index)) << what;
+    }
   }
 }
 
