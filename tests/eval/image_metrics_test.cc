@@ -22,7 +22,7 @@ namespace {
 cv::Mat MakeImage(int rows, int cols, int channels, int noise, uint32_t seed) {
   std::mt19937 rng(seed);
   cv::Mat base(rows, cols, CV_8UC(channels));
-  cv::randu(base, 0, 256);
+  cv::RNG(seed).fill(base, cv::RNG::UNIFORM, 0, 256);  // not the global RNG
   cv::GaussianBlur(base, base, cv::Size(0, 0), 2.0);
   for (int r = 0; r < rows; ++r) {
     uint8_t* p = base.ptr<uint8_t>(r);
@@ -133,6 +133,114 @@ TEST(ImageMetrics, FusedKernelEqualsGenericFilterPath) {
     a.convertTo(fa, CV_64F);
     b.convertTo(fb, CV_64F);
     EXPECT_NEAR(Ssim(fa, fb), Ssim(a, b), 1e-12) << channels;
+  }
+}
+
+// An 11x11 image has exactly one valid SSIM pixel per channel, so
+// SsimPerChannel on 11x11 patches gives single SSIM-map values: this compares
+// the fused kernel (and its float32-reciprocal division) with skimage pixel by
+// pixel, including flat, saturated, black-vs-white and pure-noise windows.
+TEST(ImageMetrics, PerPixelSsimMatchesSkimageOn11x11Patches) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("skimage");
+  constexpr int kPatches = 160;
+  const cv::Mat texture = MakeImage(120, 160, 3, 10, 31);
+  const cv::Mat texture_b = Perturb(texture, 45, 32);
+  std::mt19937 rng(33);
+  cv::RNG noise(34);  // not cv::randu: its global state depends on test order
+  std::vector<uint8_t> pa, pb;
+  for (int i = 0; i < kPatches; ++i) {
+    cv::Mat a, b;
+    const int kind = i % 8;
+    if (kind < 4) {  // crops of a textured pair (incl. saturated corners)
+      const int r = static_cast<int>(rng() % (texture.rows - 11));
+      const int c = static_cast<int>(rng() % (texture.cols - 11));
+      const cv::Rect roi(c, r, 11, 11);
+      a = texture(roi).clone();
+      b = (kind == 3 ? texture(roi) : texture_b(roi)).clone();
+    } else if (kind == 4) {  // independent uniform noise
+      a.create(11, 11, CV_8UC3);
+      b.create(11, 11, CV_8UC3);
+      noise.fill(a, cv::RNG::UNIFORM, 0, 256);
+      noise.fill(b, cv::RNG::UNIFORM, 0, 256);
+    } else if (kind == 5) {  // black vs white / flat vs flat
+      a = cv::Mat(11, 11, CV_8UC3, cv::Scalar(0, 255, 17 * (i % 15)));
+      b = cv::Mat(11, 11, CV_8UC3, cv::Scalar(255, 255, 3 * (i % 85)));
+    } else if (kind == 6) {  // flat vs noise
+      a = cv::Mat(11, 11, CV_8UC3, cv::Scalar(0, 128, 255));
+      b.create(11, 11, CV_8UC3);
+      noise.fill(b, cv::RNG::UNIFORM, 0, 256);
+    } else {  // binary 0/255 noise against its small perturbation
+      a.create(11, 11, CV_8UC3);
+      noise.fill(a, cv::RNG::UNIFORM, 0, 2);
+      a *= 255;
+      b = Perturb(a, 3, 1000 + i);
+    }
+    pa.insert(pa.end(), a.data, a.data + a.total() * 3);
+    pb.insert(pb.end(), b.data, b.data + b.total() * 3);
+  }
+  const std::string dir = test::MakeTempDir("ssim_patches");
+  WriteNpy(dir + "/a.npy", NpyArray::Uint8({kPatches, 11, 11, 3}, pa.data()));
+  WriteNpy(dir + "/b.npy", NpyArray::Uint8({kPatches, 11, 11, 3}, pb.data()));
+  {
+    std::FILE* f = std::fopen((dir + "/ref.py").c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs(
+        "import sys\n"
+        "import numpy as np\n"
+        "from skimage.metrics import structural_similarity as ssim\n"
+        "a = np.load(sys.argv[1] + '/a.npy')\n"
+        "b = np.load(sys.argv[1] + '/b.npy')\n"
+        "for i in range(a.shape[0]):\n"
+        "    print(' '.join('%.17g' % ssim(a[i, :, :, c], b[i, :, :, c],\n"
+        "          gaussian_weights=True, sigma=1.5,\n"
+        "          use_sample_covariance=False, data_range=255)\n"
+        "          for c in range(3)))\n",
+        f);
+    std::fclose(f);
+  }
+  std::string out;
+  ASSERT_EQ(test::RunCommand(
+                std::string(test::kDebianPython) + " " + dir + "/ref.py " + dir,
+                &out),
+            0)
+      << out;
+  std::istringstream lines(out);
+  double max_error = 0, min_ssim = 1, max_ssim = -1;
+  for (int i = 0; i < kPatches; ++i) {
+    const cv::Mat a(11, 11, CV_8UC3, pa.data() + i * 363);
+    const cv::Mat b(11, 11, CV_8UC3, pb.data() + i * 363);
+    const std::vector<double> ours = SsimPerChannel(a, b);
+    for (int c = 0; c < 3; ++c) {
+      double ref = NAN;
+      lines >> ref;
+      ASSERT_FALSE(std::isnan(ref)) << "patch " << i << " channel " << c;
+      EXPECT_NEAR(ours[c], ref, 1e-9) << "patch " << i << " channel " << c;
+      max_error = std::max(max_error, std::abs(ours[c] - ref));
+      min_ssim = std::min(min_ssim, ref);
+      max_ssim = std::max(max_ssim, ref);
+    }
+  }
+  std::printf(
+      "%d SSIM-map pixels: max |geodrive - skimage| %.3g (SSIM range %.4f .. "
+      "%.4f)\n",
+      3 * kPatches, max_error, min_ssim, max_ssim);
+}
+
+// The fused kernel divides through a float32 reciprocal refined in float64
+// when the denominator range allows it (uint8 input, moderate data_range), and
+// exactly otherwise; both must equal the generic five-map path.
+TEST(ImageMetrics, FusedKernelEqualsGenericPathForAnyDataRange) {
+  SsimOptions generic;
+  generic.fused_kernel = false;
+  const cv::Mat a = MakeImage(40, 57, 3, 10, 41);
+  const cv::Mat b = Perturb(a, 70, 42);
+  for (double range : {1.0, 255.0, 65535.0, 1e12}) {
+    SsimOptions fused;
+    fused.data_range = generic.data_range = range;
+    const std::vector<double> f = SsimPerChannel(a, b, fused);
+    const std::vector<double> g = SsimPerChannel(a, b, generic);
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(f[c], g[c], 1e-12) << "data_range " << range << " c " << c;
   }
 }
 
