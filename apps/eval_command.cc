@@ -1,7 +1,9 @@
-// `geodrive eval`: PSNR/SSIM between predicted and ground-truth videos, ADE/FDE
+// `geodrive eval`: PSNR/SSIM (and, with LibTorch and user-provided TorchScript
+// models, LPIPS/FID/FVD) between predicted and ground-truth videos, ADE/FDE
 // between trajectories; writes report.json + report.csv + report.md +
 // report.png (docs/EVAL.md).
 
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <set>
@@ -9,6 +11,7 @@
 
 #include "apps/command.h"
 #include "eval/deep_metrics.h"
+#include "eval/frechet.h"
 #include "eval/image_metrics.h"
 #include "eval/report.h"
 #include "eval/trajectory_metrics.h"
@@ -26,7 +29,73 @@ struct EvalArgs {
               method = "ours";
   bool x100 = false;
   int threads = 0;
+  // Deep metrics: TorchScript models and cached reference statistics.
+  std::string lpips_model, fid_model, fvd_model, fid_stats, fvd_stats;
 };
+
+// Stacks per-video feature blocks (same number of columns) into one matrix.
+Eigen::MatrixXd StackRows(const std::vector<Eigen::MatrixXd>& blocks) {
+  Eigen::Index rows = 0;
+  for (const Eigen::MatrixXd& b : blocks) rows += b.rows();
+  Eigen::MatrixXd out(rows, blocks.empty() ? 0 : blocks[0].cols());
+  Eigen::Index r = 0;
+  for (const Eigen::MatrixXd& b : blocks) {
+    GEODRIVE_CHECK_INPUT(b.cols() == out.cols(),
+                         "feature dimension changed between videos (",
+                         out.cols(), " vs ", b.cols(), ")");
+    out.middleRows(r, b.rows()) = b;
+    r += b.rows();
+  }
+  return out;
+}
+
+bool StatsCached(const std::string& prefix) {
+  return !prefix.empty() && std::filesystem::exists(prefix + "_mu.npy") &&
+         std::filesystem::exists(prefix + "_sigma.npy");
+}
+
+// FID or FVD of the collected features. The ground-truth side comes from the
+// cached statistics at `stats_prefix` when they exist; otherwise from
+// `gt_features`, and then they are written there (when a prefix is given).
+FrechetReport Frechet(const char* name,
+                      const std::string& model,
+                      const std::string& stats_prefix,
+                      const std::vector<Eigen::MatrixXd>& pred_features,
+                      const std::vector<Eigen::MatrixXd>& gt_features) {
+  FrechetReport out;
+  out.model = model;
+  out.gt_stats = stats_prefix;
+  const Eigen::MatrixXd pred = StackRows(pred_features);
+  out.pred_samples = pred.rows();
+  out.dims = static_cast<int>(pred.cols());
+  const FeatureStatistics pred_stats = ComputeFeatureStatistics(
+      pred, std::string(name) + " features of the predicted videos");
+  FeatureStatistics gt_stats;
+  if (StatsCached(stats_prefix)) {
+    gt_stats = LoadFeatureStatistics(stats_prefix);
+    GEODRIVE_CHECK_INPUT(gt_stats.dims() == out.dims, stats_prefix,
+                         "_mu.npy: reference statistics have ", gt_stats.dims(),
+                         " dimensions, the ", name, " model gives ", out.dims);
+  } else {
+    const Eigen::MatrixXd gt = StackRows(gt_features);
+    out.gt_samples = gt.rows();
+    gt_stats = ComputeFeatureStatistics(
+        gt, std::string(name) + " features of the ground-truth videos");
+    if (!stats_prefix.empty()) {
+      const std::filesystem::path parent =
+          std::filesystem::path(stats_prefix).parent_path();
+      std::error_code ec;
+      if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+      SaveFeatureStatistics(stats_prefix, gt_stats);
+      std::cout << "wrote " << stats_prefix << "_mu.npy and " << stats_prefix
+                << "_sigma.npy\n";
+    }
+  }
+  const FrechetResult result = FrechetDistance(pred_stats, gt_stats);
+  out.distance = result.distance;
+  std::cerr << name << ": " << result.Summary() << "\n";
+  return out;
+}
 
 std::vector<std::string> SplitMetrics(const std::string& text) {
   std::vector<std::string> out;
@@ -59,6 +128,30 @@ int RunEval(const EvalArgs& args) {
   const bool image =
       wants("psnr") || wants("ssim") || wants("psnr_y") || wants("ssim_y");
   const bool traj = wants("ade") || wants("fde");
+  const bool lpips = wants("lpips"), fid = wants("fid"), fvd = wants("fvd");
+  GEODRIVE_CHECK_INPUT(!lpips || !args.lpips_model.empty(),
+                       "--metrics lpips needs --lpips-model (a TorchScript "
+                       "LPIPS model, docs/EVAL.md)");
+  GEODRIVE_CHECK_INPUT(!fid || !args.fid_model.empty(),
+                       "--metrics fid needs --fid-model (a TorchScript "
+                       "pytorch-fid Inception, docs/EVAL.md)");
+  GEODRIVE_CHECK_INPUT(!fvd || !args.fvd_model.empty(),
+                       "--metrics fvd needs --fvd-model (a TorchScript I3D, "
+                       "docs/EVAL.md)");
+  // Load the models first: a bad model file fails before any video is read.
+  std::unique_ptr<LpipsModel> lpips_net;
+  std::unique_ptr<FeatureExtractor> fid_net, fvd_net;
+  if (lpips) lpips_net = LoadLpipsModel(args.lpips_model);
+  if (fid)
+    fid_net =
+        LoadFeatureExtractor(args.fid_model, FeatureNetwork::kInceptionFid);
+  if (fvd)
+    fvd_net = LoadFeatureExtractor(args.fvd_model, FeatureNetwork::kI3dFvd);
+  // Ground-truth features are needed unless cached reference statistics exist.
+  const bool fid_gt = fid && !StatsCached(args.fid_stats);
+  const bool fvd_gt = fvd && !StatsCached(args.fvd_stats);
+  const bool need_gt = image || lpips || fid_gt || fvd_gt;
+  const bool videos = need_gt || fid || fvd;
 
   EvalReport report;
   report.pred = args.pred;
@@ -71,19 +164,64 @@ int RunEval(const EvalArgs& args) {
   report.frame_options.luma = wants("psnr_y") || wants("ssim_y");
   report.frame_options.num_threads = args.threads;
 
-  if (image) {
-    GEODRIVE_CHECK_INPUT(!args.pred.empty() && !args.gt.empty(),
-                         "--pred and --gt are required for psnr/ssim");
-    const auto pairs = MatchVideos(ListVideos(args.pred, args.pred_name),
-                                   ListVideos(args.gt, args.gt_name));
+  std::vector<Eigen::MatrixXd> fid_pred, fid_gt_rows, fvd_pred, fvd_gt_rows;
+  if (videos) {
+    GEODRIVE_CHECK_INPUT(!args.pred.empty(),
+                         "--pred is required for psnr/ssim/lpips/fid/fvd");
+    GEODRIVE_CHECK_INPUT(!need_gt || !args.gt.empty(),
+                         "--gt is required for psnr/ssim/lpips, and for "
+                         "fid/fvd without cached --fid-stats/--fvd-stats");
+    std::vector<VideoPairSource> pairs;
+    if (need_gt) {
+      pairs = MatchVideos(ListVideos(args.pred, args.pred_name),
+                          ListVideos(args.gt, args.gt_name));
+    } else {
+      for (const VideoSource& v : ListVideos(args.pred, args.pred_name))
+        pairs.push_back({v.id, v.path, ""});
+    }
     for (const VideoPairSource& pair : pairs) {
-      VideoEvalRecord record{pair.id, pair.pred_path, pair.gt_path, {}};
-      record.scores = CompareVideos(ReadVideoFrames(pair.pred_path),
-                                    ReadVideoFrames(pair.gt_path),
-                                    report.frame_options, pair.id);
-      std::cerr << pair.id << ": " << record.scores.Summary() << "\n";
+      VideoEvalRecord record;
+      record.id = pair.id;
+      record.pred_path = pair.pred_path;
+      record.gt_path = pair.gt_path;
+      const std::vector<cv::Mat> pred = ReadVideoFrames(pair.pred_path);
+      const std::vector<cv::Mat> gt =
+          need_gt ? ReadVideoFrames(pair.gt_path) : std::vector<cv::Mat>();
+      if (image) {
+        record.scores = CompareVideos(pred, gt, report.frame_options, pair.id);
+        std::cerr << pair.id << ": " << record.scores.Summary() << "\n";
+      }
+      if (lpips) {
+        GEODRIVE_CHECK_INPUT(pred.size() == gt.size(), pair.id,
+                             ": frame counts differ (predicted ", pred.size(),
+                             ", ground truth ", gt.size(), ")");
+        double sum = 0;
+        for (size_t i = 0; i < pred.size(); ++i) {
+          record.lpips_per_frame.push_back(lpips_net->Distance(pred[i], gt[i]));
+          sum += record.lpips_per_frame.back();
+        }
+        record.lpips = sum / pred.size();
+        std::cerr << pair.id << ": lpips " << record.lpips << "\n";
+      }
+      if (fid) {
+        fid_pred.push_back(fid_net->Extract({pred}));
+        if (fid_gt) fid_gt_rows.push_back(fid_net->Extract({gt}));
+      }
+      if (fvd) {
+        fvd_pred.push_back(fvd_net->Extract({pred}));
+        if (fvd_gt) fvd_gt_rows.push_back(fvd_net->Extract({gt}));
+      }
       report.videos.push_back(std::move(record));
     }
+  }
+  if (lpips) report.lpips_model = args.lpips_model;
+  if (fid) {
+    report.fid =
+        Frechet("fid", args.fid_model, args.fid_stats, fid_pred, fid_gt_rows);
+  }
+  if (fvd) {
+    report.fvd =
+        Frechet("fvd", args.fvd_model, args.fvd_stats, fvd_pred, fvd_gt_rows);
   }
   if (traj) {
     GEODRIVE_CHECK_INPUT(!args.pred_traj.empty() && !args.gt_traj.empty(),
@@ -116,6 +254,21 @@ int RunEval(const EvalArgs& args) {
     std::cout << m << " " << s.mean << " (std " << s.std << ", " << s.count
               << " videos)\n";
   }
+  if (lpips) {
+    const MeanStd s = report.Aggregate("lpips");
+    std::cout << "lpips " << s.mean << " (std " << s.std << ", " << s.count
+              << " videos)\n";
+  }
+  for (const auto& [name, f] :
+       {std::pair("fid", &report.fid), {"fvd", &report.fvd}}) {
+    if (!*f) continue;
+    std::cout << name << " " << (*f)->distance << " (" << (*f)->pred_samples
+              << " predicted vs "
+              << ((*f)->gt_samples >= 0
+                      ? std::to_string((*f)->gt_samples) + " ground truth"
+                      : "cached " + (*f)->gt_stats)
+              << ", " << (*f)->dims << "-d)\n";
+  }
   if (report.trajectory)
     std::cout << "trajectory " << report.trajectory->Summary() << "\n";
   return kExitOk;
@@ -131,9 +284,23 @@ CommandRunner SetupEval(CLI::App& app) {
                  "Ground-truth videos, same forms (pairs: <clip>/<gt-name>)");
   app.add_option("--metrics", args->metrics,
                  "Comma list: psnr,ssim,psnr_y,ssim_y (BT.601 luma),ade,fde; "
-                 "lpips,fid,fvd need "
-                 "GEODRIVE_WITH_TORCH")
+                 "lpips,fid,fvd need GEODRIVE_WITH_TORCH and a TorchScript "
+                 "model each")
       ->capture_default_str();
+  app.add_option("--lpips-model", args->lpips_model,
+                 "TorchScript LPIPS model (x, y in [-1,1]) -> [N,1,1,1]");
+  app.add_option("--fid-model", args->fid_model,
+                 "TorchScript pytorch-fid Inception, [N,3,299,299] in [-1,1] "
+                 "-> [N,2048(,1,1)]");
+  app.add_option("--fvd-model", args->fvd_model,
+                 "TorchScript I3D (i3d_torchscript.pt), [N,3,T,224,224] in "
+                 "[-1,1] -> [N,400]");
+  app.add_option("--fid-stats", args->fid_stats,
+                 "Reference FID statistics <prefix>_mu.npy/_sigma.npy: used "
+                 "instead of --gt when they exist, else computed from --gt "
+                 "and written");
+  app.add_option("--fvd-stats", args->fvd_stats,
+                 "Reference FVD statistics, same workflow as --fid-stats");
   app.add_option("--align", args->align, "Trajectory alignment before ADE/FDE")
       ->check(CLI::IsMember({"none", "se3", "sim3", "scale"}))
       ->capture_default_str();
@@ -171,8 +338,8 @@ CommandRunner SetupEval(CLI::App& app) {
 GEODRIVE_REGISTER_COMMAND(
     eval,
     "eval",
-    "PSNR/SSIM between videos and ADE/FDE between trajectories, with a "
-    "JSON/CSV/Markdown/PNG report",
+    "PSNR/SSIM/LPIPS/FID/FVD between videos and ADE/FDE between "
+    "trajectories, with a JSON/CSV/Markdown/PNG report",
     SetupEval);
 
 }  // namespace geodrive

@@ -156,7 +156,7 @@ MeanStd EvalReport::Aggregate(const std::string& metric) const {
   MeanStd out;
   double sum = 0, sq = 0;
   for (const VideoEvalRecord& v : videos) {
-    const double x = Get(v.scores.mean, metric);
+    const double x = metric == "lpips" ? v.lpips : Get(v.scores.mean, metric);
     if (!std::isfinite(x)) continue;
     sum += x;
     sq += x * x;
@@ -180,8 +180,12 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
   const std::vector<std::string> image_metrics = {"psnr", "ssim", "psnr_y",
                                                   "ssim_y"};
   std::vector<std::string> present;
+  const bool image_requested =
+      std::any_of(image_metrics.begin(), image_metrics.end(),
+                  [&](const std::string& m) { return Has(r, m); });
   for (const std::string& m : image_metrics) {
-    if (!r.videos.empty() && std::isfinite(Get(r.videos[0].scores.mean, m)))
+    if (image_requested && !r.videos.empty() &&
+        std::isfinite(Get(r.videos[0].scores.mean, m)))
       present.push_back(m);
   }
 
@@ -205,13 +209,37 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
            "over frames"},
       {"ssim_data_range", r.frame_options.ssim_options.data_range},
       {"luma", "full-range BT.601 Y = 0.299 R + 0.587 G + 0.114 B (float64)"},
-      {"dataset",
-       "mean and population std over videos of the per-video means"}};
+      {"dataset", "mean and population std over videos of the per-video means"},
+      {"lpips",
+       "TorchScript LPIPS model on frames /255*2-1, no resize; per video = "
+       "mean over frames"},
+      {"fid",
+       "Frechet distance of TorchScript Inception features of all frames "
+       "(/255, bilinear 299x299, 2x-1), unbiased covariance"},
+      {"fvd",
+       "Frechet distance of TorchScript I3D features of whole clips "
+       "(common_metrics: /255, short side 224, centre crop, 2x-1)"}};
   nlohmann::json summary;
   for (const std::string& m : present) {
     const MeanStd s = r.Aggregate(m);
     summary[m] = {
         {"mean", Num(s.mean)}, {"std", Num(s.std)}, {"videos", s.count}};
+  }
+  const bool has_lpips = !r.lpips_model.empty();
+  if (has_lpips) {
+    const MeanStd s = r.Aggregate("lpips");
+    summary["lpips"] = {{"mean", Num(s.mean)},
+                        {"std", Num(s.std)},
+                        {"videos", s.count},
+                        {"model", r.lpips_model}};
+  }
+  for (const auto& [name, f] : {std::pair("fid", &r.fid), {"fvd", &r.fvd}}) {
+    if (!*f) continue;
+    const FrechetReport& x = **f;
+    summary[name] = {
+        {"value", Num(x.distance)},   {"pred_samples", x.pred_samples},
+        {"gt_samples", x.gt_samples}, {"dims", x.dims},
+        {"model", x.model},           {"gt_stats", x.gt_stats}};
   }
   if (r.trajectory) {
     const TrajectoryErrors& t = *r.trajectory;
@@ -243,6 +271,10 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
         per_frame.push_back(Get(f, m));
       jv[m + "_per_frame"] = per_frame;
     }
+    if (has_lpips) {
+      jv["lpips"] = Num(v.lpips);
+      jv["lpips_per_frame"] = v.lpips_per_frame;
+    }
     videos.push_back(jv);
   }
   j["videos"] = videos;
@@ -252,12 +284,14 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
   std::ostringstream csv;
   csv << "id,frames,width,height";
   for (const std::string& m : present) csv << "," << m;
+  if (has_lpips) csv << ",lpips";
   csv << ",pred,gt\n";
   csv << std::setprecision(10);
   for (const VideoEvalRecord& v : r.videos) {
     csv << v.id << "," << v.scores.frames.size() << "," << v.scores.width << ","
         << v.scores.height;
     for (const std::string& m : present) csv << "," << Get(v.scores.mean, m);
+    if (has_lpips) csv << "," << v.lpips;
     csv << "," << v.pred_path << "," << v.gt_path << "\n";
   }
   WriteText(csv_path, csv.str());
@@ -271,8 +305,13 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
     if (!Has(r, m)) return std::string("-");
     return Fixed(r.Aggregate(m).mean, digits);
   };
-  md << "| " << r.method << " | - | " << cell("psnr", 3) << " | "
-     << cell("ssim", 4) << " | - | - | "
+  auto frechet = [](const std::optional<FrechetReport>& f) {
+    return f ? Fixed(f->distance, 2) : std::string("-");
+  };
+  md << "| " << r.method << " | "
+     << (has_lpips ? Fixed(r.Aggregate("lpips").mean, 4) : "-") << " | "
+     << cell("psnr", 3) << " | " << cell("ssim", 4) << " | " << frechet(r.fid)
+     << " | " << frechet(r.fvd) << " | "
      << (r.trajectory && Has(r, "ade") ? Fixed(r.trajectory->ade, 2) : "-")
      << " | "
      << (r.trajectory && Has(r, "fde") ? Fixed(r.trajectory->fde, 2) : "-")
@@ -286,7 +325,25 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
     md << "ADE/FDE: alignment " << ToString(r.trajectory->alignment) << ", "
        << r.trajectory->units << (r.x100 ? ", ×10²" : "") << ". ";
   }
-  md << "LPIPS/FID/FVD: not computed (need GEODRIVE_WITH_TORCH).\n";
+  if (has_lpips) md << "LPIPS: " << r.lpips_model << ", mean over frames. ";
+  if (r.fid) {
+    md << "FID: " << r.fid->model << ", " << r.fid->pred_samples
+       << " predicted frames vs "
+       << (r.fid->gt_stats.empty() || r.fid->gt_samples >= 0
+               ? std::to_string(r.fid->gt_samples) + " ground-truth frames"
+               : "cached statistics " + r.fid->gt_stats)
+       << ". ";
+  }
+  if (r.fvd) {
+    md << "FVD: " << r.fvd->model << ", " << r.fvd->pred_samples
+       << " predicted clips vs "
+       << (r.fvd->gt_stats.empty() || r.fvd->gt_samples >= 0
+               ? std::to_string(r.fvd->gt_samples) + " ground-truth clips"
+               : "cached statistics " + r.fvd->gt_stats)
+       << ". ";
+  }
+  if (!has_lpips && !r.fid && !r.fvd) md << "LPIPS/FID/FVD: not computed.";
+  md << "\n";
   if (Has(r, "psnr_y") || r.frame_options.luma) {
     md << "\nLuma (BT.601 Y): PSNR-Y " << Fixed(r.Aggregate("psnr_y").mean, 3)
        << ", SSIM-Y " << Fixed(r.Aggregate("ssim_y").mean, 4) << "\n";

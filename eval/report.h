@@ -3,6 +3,8 @@
 // table in the paper's layout (GeoDrive Table 1 columns) and a PNG plot
 // (per-frame PSNR/SSIM, trajectories top view).
 
+#include <cmath>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -17,6 +19,20 @@ struct VideoEvalRecord {
   std::string pred_path;
   std::string gt_path;
   VideoScores scores;
+  // LPIPS (docs/EVAL.md): mean over frames, and per frame; NaN / empty when
+  // not computed.
+  double lpips = NAN;
+  std::vector<double> lpips_per_frame;
+};
+
+// A set-level Fréchet distance (FID over all frames, FVD over clips).
+struct FrechetReport {
+  double distance = NAN;
+  int64_t pred_samples = 0;  // feature vectors of the prediction
+  int64_t gt_samples = -1;   // -1 when the reference statistics were cached
+  int dims = 0;
+  std::string model;     // TorchScript model path
+  std::string gt_stats;  // reference statistics prefix ("" if none)
 };
 
 // Mean and population standard deviation over videos (common_metrics'
@@ -36,12 +52,14 @@ struct EvalReport {
   std::vector<VideoEvalRecord> videos;
   std::optional<TrajectoryErrors> trajectory;  // already scaled when x100
   bool x100 = false;
+  std::optional<FrechetReport> fid, fvd;
+  std::string lpips_model;  // TorchScript model path when LPIPS was computed
   // Camera centres for the plot (ground truth and aligned prediction).
   std::vector<Eigen::Vector3d> gt_centres;
   std::vector<Eigen::Vector3d> pred_centres_aligned;
 
   // Dataset-level statistic of a per-video mean ("psnr", "ssim", "psnr_y",
-  // "ssim_y").
+  // "ssim_y", "lpips").
   MeanStd Aggregate(const std::string& metric) const;
 };
 
