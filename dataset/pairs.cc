@@ -1,6 +1,7 @@
 #include "dataset/pairs.h"
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -155,6 +156,45 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
 PairMeta ReadPairMeta(const std::string& pair_dir) {
   const std::string path = pair_dir + "/meta.json";
   return PairMetaFromJson(ReadText(path), path);
+}
+
+PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry) {
+  const std::string& rel = entry.pair_dir;
+  const std::string where = build_dir + "/manifest.jsonl";
+  GEODRIVE_CHECK_INPUT(
+      !rel.empty() && rel[0] != '/' && rel.find("..") == std::string::npos,
+      where, ": pair '", entry.clip_id, "' has pair_dir '", rel,
+      "' outside the build folder");
+  PairRecord r;
+  r.entry = entry;
+  r.dir = build_dir + "/" + rel;
+  r.meta = ReadPairMeta(r.dir);
+  const std::string meta_path = r.dir + "/meta.json";
+  GEODRIVE_CHECK_INPUT(r.meta.clip_id == entry.clip_id, meta_path,
+                       ": clip_id '", r.meta.clip_id,
+                       "' differs from the manifest's '", entry.clip_id, "'");
+  auto resolve = [&](const char* lossless, const char* video) {
+    for (const char* role : {lossless, video}) {
+      const auto it = r.meta.files.find(role);
+      if (it == r.meta.files.end()) continue;
+      const std::string& name = it->second;
+      GEODRIVE_CHECK_INPUT(!name.empty() &&
+                               name.find('/') == std::string::npos &&
+                               name != "." && name != "..",
+                           meta_path, ": files.", role, " = '", name,
+                           "' is not a plain name inside the pair folder");
+      const std::string path = r.dir + "/" + name;
+      GEODRIVE_CHECK_INPUT(
+          std::ifstream(path).good() || std::filesystem::is_directory(path),
+          path, ": missing (listed in meta.json files.", role, ")");
+      return path;
+    }
+    ThrowInputError(meta_path, "files has neither '", lossless, "' nor '",
+                    video, "'");
+  };
+  r.gt_video = resolve("gt_frames", "gt");
+  r.cond_video = resolve("cond_frames", "cond");
+  return r;
 }
 
 std::string ManifestEntryToJson(const ManifestEntry& e) {

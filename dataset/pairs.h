@@ -84,6 +84,22 @@ ManifestEntry ManifestEntryFromJson(const std::string& line,
 // line on bad JSON.
 std::vector<ManifestEntry> ReadManifest(const std::string& path);
 
+// One pair of a build output, resolved for reading: its metadata and the
+// paths of the GT and condition videos (the lossless frame folders
+// gt_frames/ cond_frames/ when the pair has them, else gt.mp4 / cond.mp4).
+struct PairRecord {
+  ManifestEntry entry;
+  PairMeta meta;
+  std::string dir;         // build_dir + "/" + entry.pair_dir
+  std::string gt_video;    // video file or frame folder
+  std::string cond_video;  // video file or frame folder
+};
+// Resolves a manifest entry under `build_dir` (the folder of manifest.jsonl).
+// Throws InputError naming the file when pair_dir or a file name escapes the
+// build folder (absolute, "..", or a file name with '/'), meta.json is bad or
+// its clip id differs from the manifest's, or a video is missing.
+PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry);
+
 struct FailureEntry {
   std::string clip_id;
   std::string stage;

@@ -44,6 +44,13 @@ DiTConfig ConfigPreset(const std::string& name) {
                       // channels, 3x4x6 latents
     return c;
   }
+  if (name == "tiny-49") {
+    // tiny with the real clip length: 49 pixel frames -> 13 latent frames
+    // (training tests on padded 25 -> 49 frame pairs, as upstream).
+    c.name = name;
+    c.latent_frames = 13;
+    return c;
+  }
   if (name == "cogvideox-5b-i2v") {
     // THUDM/CogVideoX-5b-I2V transformer/config.json (reference notes §1.1) +
     // GeoDrive branch.
@@ -80,7 +87,7 @@ DiTConfig ConfigPreset(const std::string& name) {
 }
 
 std::vector<std::string> ConfigPresetNames() {
-  return {"cogvideox-5b-i2v", "tiny"};
+  return {"cogvideox-5b-i2v", "tiny", "tiny-49"};
 }
 
 int64_t NumElements(const std::vector<int64_t>& shape) {

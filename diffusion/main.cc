@@ -1,7 +1,7 @@
 // `geodrive-diffusion`: the LibTorch diffusion runtime (CogVideoX-5B-I2V
 // backbone + GeoDrive condition encoder). Subcommands: sample, init-weights,
-// check-weights, names. Exit codes: 0 ok, 1 internal failure, 2 bad arguments
-// or bad input.
+// check-weights, names, train. Exit codes: 0 ok, 1 internal failure, 2 bad
+// arguments or bad input.
 
 #include <glog/logging.h>
 
@@ -11,8 +11,14 @@
 
 #include "diffusion/config.h"
 #include "diffusion/sampler.h"
+#include "diffusion/train.h"
 #include "geodrive_version.h"
 #include "geometry/status.h"
+
+namespace geodrive::diffusion {
+// diffusion/generate_command.cc
+void AddGenerateCommand(CLI::App* app, std::function<int()>* run);
+}  // namespace geodrive::diffusion
 
 int main(int argc, char** argv) {
   using namespace geodrive;
@@ -170,6 +176,9 @@ int main(int argc, char** argv) {
       return 0;
     };
   });
+
+  AddTrainCommand(&app, &run);     // diffusion/train_command.cc
+  AddGenerateCommand(&app, &run);  // diffusion/generate_command.cc
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,542 @@
+// `geodrive-diffusion generate`: offline video generation from a first frame
+// and a camera trajectory (docs/DIFFUSION.md, "generate").
+//
+//   1. Geometry: a point cloud from the frame-0 depth of a MonST3R folder
+//      (--geometry DIR) or of --depth DEPTH.npy with --intrinsics K.txt, in the
+//      camera frame of the first image.
+//   2. Condition render along the trajectory (render/renderer.h; with --boxes,
+//      the dynamic-object editing of render/dynamic_edit.h) at the model's
+//      pixel size, padded to the model's frame count by repeating the last
+//      frame (as upstream pads 25 -> 49).
+//   3. VAE-encode the first image (1 frame) and the condition video (latent
+//      mean x scaling_factor), sample with diffusion/sampler.h, VAE-decode.
+//   4. Write the first --frames frames as MP4 (render/video.h) and a preview
+//      PNG (contact sheet: condition render row above the generated row), and
+//      keep the latents under <stem>_latents/.
+
+#include <ATen/ATen.h>
+#include <glog/logging.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dataset/pairs.h"
+#include "diffusion/config.h"
+#include "diffusion/model.h"
+#include "diffusion/safetensors.h"
+#include "diffusion/sampler.h"
+#include "diffusion/vae.h"
+#include "eval/video_io.h"
+#include "geometry/camera.h"
+#include "geometry/image_io.h"
+#include "geometry/monst3r.h"
+#include "geometry/npy.h"
+#include "geometry/point_cloud.h"
+#include "geometry/status.h"
+#include "geometry/trajectory.h"
+#include "geometry/trajectory_json.h"
+#include "render/dynamic_edit.h"
+#include "render/presets.h"
+#include "render/renderer.h"
+#include "render/video.h"
+
+namespace geodrive {
+namespace diffusion {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct GenerateArgs {
+  std::string image, trajectory, boxes, edit_mode = "3d", geometry, depth,
+                                        intrinsics;
+  std::string config = "tiny", weights, branch_weights, vae_weights,
+              prompt_embeds;
+  std::string out, preset = "paper", scheduler = "dpm";
+  std::string manifest, out_dir;  // batch mode over build-dataset pairs
+  int limit = 0;   // batch mode: at most this many pairs (0: all)
+  int frames = 0;  // 0: min(model frames, trajectory poses)
+  int steps = 50;
+  uint64_t seed = 0;
+  double guidance = 6.0, conditioning_scale = 1.0, fps = 8.0;
+  bool dynamic_cfg = false, no_progress = false;
+};
+
+// A 3x3 K from a text file (9 numbers; with 9*N numbers the first K is used).
+PinholeCamera ReadIntrinsics(const std::string& path, int width, int height) {
+  std::ifstream in(path);
+  if (!in) ThrowInputError(path, "cannot open intrinsics file");
+  std::vector<double> v;
+  std::string token;
+  while (in >> token) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(token, &used));
+      if (used != token.size()) throw std::invalid_argument(token);
+    } catch (const std::logic_error&) {
+      ThrowInputError(path, "'", token, "' is not a number");
+    }
+  }
+  GEODRIVE_CHECK_INPUT(v.size() >= 9 && v.size() % 9 == 0, path, ": ", v.size(),
+                       " numbers (expected a 3x3 K: 9 per frame)");
+  Eigen::Matrix3d K;
+  for (int i = 0; i < 9; ++i) K(i / 3, i % 3) = v[i];
+  GEODRIVE_CHECK_INPUT(K.allFinite() && K(1, 0) == 0 && K(2, 0) == 0 &&
+                           K(2, 1) == 0 && K(2, 2) == 1 && K(0, 1) == 0,
+                       path, ": not a pinhole K [[fx,0,cx],[0,fy,cy],[0,0,1]]");
+  const PinholeCamera camera = PinholeCamera::FromK(K, width, height);
+  camera.Check(path);
+  return camera;
+}
+
+cv::Mat ReadDepth(const std::string& path) {
+  const NpyArray a = ReadNpyAsFloat32(path);
+  std::vector<int64_t> shape = a.shape;
+  while (shape.size() > 2 && shape.front() == 1) shape.erase(shape.begin());
+  while (shape.size() > 2 && shape.back() == 1) shape.pop_back();
+  GEODRIVE_CHECK_INPUT(shape.size() == 2 && shape[0] > 0 && shape[1] > 0 &&
+                           shape[0] <= 16384 && shape[1] <= 16384,
+                       path, ": expected a (H, W) depth array");
+  cv::Mat depth(static_cast<int>(shape[0]), static_cast<int>(shape[1]), CV_32F);
+  std::memcpy(depth.data, a.Data<float>(), depth.total() * sizeof(float));
+  return depth;
+}
+
+// Every pixel with finite positive depth (integer-index convention, as
+// MonST3R), coloured by `rgb`, in `world_from_cam`'s frame.
+PointCloud CloudFromDepth(const cv::Mat& depth,
+                          const cv::Mat& rgb,
+                          const PinholeCamera& camera,
+                          const Rigid3d& world_from_cam) {
+  PointCloud cloud;
+  cloud.Reserve(depth.total());
+  for (int j = 0; j < depth.rows; ++j) {
+    for (int i = 0; i < depth.cols; ++i) {
+      const float z = depth.at<float>(j, i);
+      if (!(z > 0) || !std::isfinite(z)) continue;
+      const Eigen::Vector3d p =
+          world_from_cam * camera.Unproject(Eigen::Vector2d(i, j), z,
+                                            PixelConvention::kIntegerIndex);
+      cloud.positions.push_back(p.cast<float>());
+      const cv::Vec3b c = rgb.at<cv::Vec3b>(j, i);
+      cloud.colors.push_back(Color3u8(c[0], c[1], c[2]));
+    }
+  }
+  return cloud;
+}
+
+// RGB uint8 frames -> [1, 3, F, H, W] float32 in [-1, 1].
+at::Tensor FramesToTensor(const std::vector<cv::Mat>& frames) {
+  std::vector<at::Tensor> ts;
+  for (const cv::Mat& f : frames) {
+    const cv::Mat c = f.isContinuous() ? f : f.clone();
+    ts.push_back(at::from_blob(c.data, {c.rows, c.cols, 3}, at::kByte)
+                     .to(at::kFloat)
+                     .permute({2, 0, 1}));
+  }
+  return (at::stack(ts, 1).unsqueeze(0) / 127.5 - 1.0).contiguous();
+}
+
+// [1, 3, F, H, W] in about [-1, 1] -> the first `count` RGB uint8 frames.
+std::vector<cv::Mat> TensorToFrames(const at::Tensor& video, int count) {
+  const at::Tensor u8 = ((video.clamp(-1.0, 1.0) + 1.0) * 127.5)
+                            .round()
+                            .to(at::kByte)
+                            .permute({0, 2, 3, 4, 1})
+                            .contiguous();
+  std::vector<cv::Mat> out;
+  const int h = static_cast<int>(u8.size(2)), w = static_cast<int>(u8.size(3));
+  for (int f = 0; f < count; ++f) {
+    cv::Mat m(h, w, CV_8UC3);
+    std::memcpy(m.data, u8[0][f].data_ptr<uint8_t>(), size_t(h) * w * 3);
+    out.push_back(m);
+  }
+  return out;
+}
+
+// The model's clip geometry: frames and pixel size of one generation.
+struct Model {
+  DiTConfig dit;
+  VaeConfig vc;
+  int model_frames = 0, H = 0, W = 0;
+};
+
+Model LoadModel(const GenerateArgs& a) {
+  Model m;
+  m.dit = ConfigPreset(a.config);
+  m.dit.Check();
+  m.vc = VaePreset(a.config);
+  m.vc.Check();
+  GEODRIVE_CHECK_INPUT(m.vc.latent_channels == m.dit.out_channels, "--config ",
+                       a.config, ": VAE latent channels ", m.vc.latent_channels,
+                       " != transformer channels ", m.dit.out_channels);
+  m.model_frames = static_cast<int>(m.vc.PixelFrames(m.dit.latent_frames));
+  m.H = m.dit.latent_height * m.vc.spatial_compression;
+  m.W = m.dit.latent_width * m.vc.spatial_compression;
+  GEODRIVE_CHECK_INPUT(!a.weights.empty(), "--weights is required");
+  GEODRIVE_CHECK_INPUT(a.fps > 0, "--fps must be positive");
+  return m;
+}
+
+Weights LoadVae(const GenerateArgs& a, const VaeConfig& vc) {
+  if (a.vae_weights.empty()) {
+    GEODRIVE_CHECK_INPUT(a.config == "tiny", "--config ", a.config,
+                         " needs --vae-weights (diffusers vae/"
+                         "diffusion_pytorch_model.safetensors)");
+    return VaeInitWeights(vc, a.seed);
+  }
+  LoadReport report;
+  return LoadWeights(a.vae_weights, VaeParamSpecs(vc), "", true, &report);
+}
+
+// Encodes the first image and the condition frames (resized to the model size,
+// the first `frames` used, padded to the model frame count by repeating the
+// last), samples, decodes and writes the first `frames` frames to `out`, a
+// contact sheet (condition row above generated row) to `preview` and the
+// latents to `work`/{image,cond,sample}.safetensors. Returns a summary.
+std::string GenerateVideo(const GenerateArgs& a,
+                          const Model& m,
+                          const Weights& vae,
+                          const cv::Mat& image,
+                          const std::vector<cv::Mat>& cond_frames,
+                          int frames,
+                          const std::string& out,
+                          const std::string& preview,
+                          const fs::path& work) {
+  const int W = m.W, H = m.H;
+  const VaeConfig& vc = m.vc;
+  std::vector<cv::Mat> cond;
+  for (int i = 0; i < frames; ++i) {
+    const cv::Mat& f = cond_frames[i];
+    cond.push_back(f.cols == W && f.rows == H ? f : ResizeBilinear(f, W, H));
+  }
+  std::vector<cv::Mat> cond_padded = cond;
+  while (static_cast<int>(cond_padded.size()) < m.model_frames)
+    cond_padded.push_back(cond.back());
+  const cv::Mat first = (image.cols == W && image.rows == H)
+                            ? image
+                            : ResizeBilinear(image, W, H);
+
+  // ---- VAE encode ----
+  std::error_code ec;
+  fs::create_directories(work, ec);
+  GEODRIVE_CHECK_INPUT(!ec, work.string(), ": cannot create directory (",
+                       ec.message(), ")");
+  const double sf = vc.scaling_factor;
+  {
+    at::NoGradGuard no_grad;
+    // Latent mean (upstream samples the posterior; the mean is deterministic)
+    // x scaling_factor, as [B, F, C, h, w] for the transformer.
+    const at::Tensor image_lat =
+        (VaeEncode(vc, vae, FramesToTensor({first})) * sf)
+            .permute({0, 2, 1, 3, 4})
+            .contiguous();
+    const at::Tensor cond_lat =
+        (VaeEncode(vc, vae, FramesToTensor(cond_padded)) * sf)
+            .permute({0, 2, 1, 3, 4})
+            .contiguous();
+    SaveSafetensors((work / "image.safetensors").string(),
+                    {{"latents", image_lat}});
+    SaveSafetensors((work / "cond.safetensors").string(),
+                    {{"latents", cond_lat}});
+  }
+
+  // ---- Sample ----
+  SampleOptions so;
+  so.config = a.config;
+  so.weights = a.weights;
+  so.branch_weights = a.branch_weights;
+  so.latents = (work / "image.safetensors").string();
+  so.cond_latents = (work / "cond.safetensors").string();
+  so.prompt_embeds = a.prompt_embeds;
+  so.out = (work / "sample.safetensors").string();
+  so.scheduler = a.scheduler;
+  so.steps = a.steps;
+  so.seed = a.seed;
+  so.guidance = a.guidance;
+  so.dynamic_cfg = a.dynamic_cfg;
+  so.conditioning_scale = a.conditioning_scale;
+  so.progress = !a.no_progress;
+  so.Check();
+  const SampleResult sr = Sample(so);
+
+  // ---- Decode and write ----
+  at::Tensor sample;
+  for (auto& [name, t] : LoadSafetensors(so.out)) {
+    if (name == "latents") sample = t;
+  }
+  CHECK(sample.defined()) << so.out << " has no 'latents'";
+  std::vector<cv::Mat> video_frames;
+  {
+    at::NoGradGuard no_grad;
+    const at::Tensor z =
+        (sample.to(at::kFloat) / sf).permute({0, 2, 1, 3, 4}).contiguous();
+    video_frames = TensorToFrames(VaeDecode(vc, vae, z), frames);
+  }
+  VideoWriteOptions vo;
+  vo.fps = a.fps;
+  {
+    std::error_code dir_ec;
+    const fs::path parent = fs::path(out).parent_path();
+    if (!parent.empty()) fs::create_directories(parent, dir_ec);
+  }
+  const VideoWriteResult vw = WriteVideo(out, video_frames, vo);
+  WriteImageRgb(preview, MakeContactSheet(video_frames, cond));
+  std::ostringstream summary;
+  summary << out << ": " << frames << " frames " << W << "x" << H << " ("
+          << vw.fourcc << (vw.fell_back ? ", fallback" : "") << "), config "
+          << a.config << ", " << sr.steps << " " << a.scheduler << " steps in "
+          << std::fixed << std::setprecision(1) << sr.seconds << " s; preview "
+          << preview << "; latents " << work.string() << "/";
+  return summary.str();
+}
+
+// Batch generation over a build-dataset manifest: the first GT frame and the
+// condition video of each pair -> <out-dir>/<clip_id>.mp4 (the layout
+// `geodrive eval` reads as predictions); previews and latents go to
+// <out-dir>_work/<clip_id>/ so that <out-dir> holds only videos.
+int RunGenerateManifest(const GenerateArgs& a) {
+  GEODRIVE_CHECK_INPUT(
+      a.geometry.empty() && a.depth.empty() && a.image.empty() &&
+          a.trajectory.empty() && a.boxes.empty() && a.out.empty(),
+      "--manifest reads the first frame and condition video of each pair; "
+      "do not combine it with --geometry, --depth, --image, --trajectory, "
+      "--boxes or --out");
+  GEODRIVE_CHECK_INPUT(!a.out_dir.empty(), "--manifest needs --out-dir");
+  GEODRIVE_CHECK_INPUT(a.limit >= 0, "--limit must be >= 0");
+  const Model m = LoadModel(a);
+  const std::vector<ManifestEntry> entries = ReadManifest(a.manifest);
+  GEODRIVE_CHECK_INPUT(!entries.empty(), a.manifest, ": no pairs");
+  const fs::path manifest_path(a.manifest);
+  const std::string build_dir = manifest_path.has_parent_path()
+                                    ? manifest_path.parent_path().string()
+                                    : std::string(".");
+  const Weights vae = LoadVae(a, m.vc);
+  const fs::path out_dir(a.out_dir);
+  const fs::path work_root(a.out_dir + "_work");
+  int done = 0;
+  for (const ManifestEntry& e : entries) {
+    if (a.limit > 0 && done >= a.limit) break;
+    const PairRecord rec = ReadPair(build_dir, e);
+    const std::vector<cv::Mat> gt = ReadVideoFrames(rec.gt_video);
+    const std::vector<cv::Mat> cond = ReadVideoFrames(rec.cond_video);
+    const int avail = static_cast<int>(cond.size());
+    const int frames =
+        a.frames > 0 ? a.frames : std::min(m.model_frames, avail);
+    GEODRIVE_CHECK_INPUT(
+        frames >= 1 && frames <= m.model_frames && frames <= avail,
+        rec.cond_video, ": ", avail, " condition frames; --frames ", frames,
+        " must be in [1, min(", m.model_frames, ", ", avail, ")]");
+    std::cout << GenerateVideo(a, m, vae, gt[0], cond, frames,
+                               (out_dir / (e.clip_id + ".mp4")).string(),
+                               (work_root / e.clip_id / "preview.png").string(),
+                               work_root / e.clip_id)
+              << std::endl;
+    ++done;
+  }
+  std::cout << a.out_dir << ": " << done << " video(s) from " << a.manifest
+            << std::endl;
+  return 0;
+}
+
+int RunGenerate(const GenerateArgs& a) {
+  if (!a.manifest.empty()) return RunGenerateManifest(a);
+  const Model m = LoadModel(a);
+  const int model_frames = m.model_frames, H = m.H, W = m.W;
+  GEODRIVE_CHECK_INPUT(!a.out.empty(), "--out is required");
+  GEODRIVE_CHECK_INPUT(a.geometry.empty() != a.depth.empty(),
+                       "give exactly one of --geometry MONST3R_DIR and "
+                       "--depth DEPTH.npy");
+  const RenderPreset preset = ParseRenderPreset(a.preset);
+
+  // ---- Geometry, first image, trajectory ----
+  PointCloud cloud;
+  PinholeCamera camera;
+  cv::Mat image;
+  Trajectory trajectory;
+  std::string traj_desc = a.trajectory;
+  if (!a.trajectory.empty()) {
+    trajectory = ReadTrajectoryAny(a.trajectory);
+    trajectory.Check(a.trajectory);
+  }
+  if (!a.geometry.empty()) {
+    const Monst3rFolder folder = Monst3rFolder::Open(a.geometry);
+    Monst3rLoadOptions lo;
+    lo.confidence = lo.dynamic_masks = lo.enlarged_dynamic_masks = false;
+    lo.reject_all_invalid_confidence = false;
+    lo.rgb = folder.has_rgb();
+    const Monst3rFrame f0 = folder.LoadFrame(0, lo);
+    image = a.image.empty() ? f0.rgb : ReadImageRgb(a.image);
+    GEODRIVE_CHECK_INPUT(!image.empty(), a.geometry,
+                         ": frame_0000.png is missing; pass --image");
+    const cv::Mat colours =
+        f0.rgb.empty() || f0.rgb.size() != f0.depth.size()
+            ? ResizeBilinear(image, f0.depth.cols, f0.depth.rows)
+            : f0.rgb;
+    camera = f0.camera;
+    // The released pipeline: frame-0 pointmap, no confidence threshold.
+    cloud = CloudFromDepth(f0.depth, colours, f0.camera, f0.world_from_cam);
+    if (a.trajectory.empty()) {
+      trajectory = folder.trajectory();
+      traj_desc = a.geometry + "/pred_traj.txt";
+    } else {
+      // A user trajectory is taken relative to its first pose, starting at
+      // MonST3R frame 0.
+      trajectory = trajectory.RelativeToFirst();
+      for (auto& pose : trajectory.world_from_cam)
+        pose = f0.world_from_cam * pose;
+    }
+  } else {
+    GEODRIVE_CHECK_INPUT(
+        !a.image.empty() && !a.intrinsics.empty() && !a.trajectory.empty(),
+        "--depth needs --image, --intrinsics and "
+        "--trajectory");
+    image = ReadImageRgb(a.image);
+    const cv::Mat depth = ReadDepth(a.depth);
+    GEODRIVE_CHECK_INPUT(depth.size() == image.size(), a.depth, ": depth is ",
+                         depth.cols, "x", depth.rows, " but ", a.image, " is ",
+                         image.cols, "x", image.rows);
+    camera = ReadIntrinsics(a.intrinsics, depth.cols, depth.rows);
+    cloud = CloudFromDepth(depth, image, camera, Rigid3d());
+    trajectory = trajectory.RelativeToFirst();
+  }
+  GEODRIVE_CHECK_INPUT(!cloud.empty(), "geometry has no valid depth");
+  const int frames =
+      a.frames > 0
+          ? a.frames
+          : std::min(model_frames, static_cast<int>(trajectory.size()));
+  GEODRIVE_CHECK_INPUT(frames >= 1 && frames <= model_frames, "--frames ",
+                       frames, " must be in [1, ", model_frames, "]: config '",
+                       a.config, "' generates ", model_frames, " frames at ", W,
+                       "x", H);
+  GEODRIVE_CHECK_INPUT(static_cast<int>(trajectory.size()) >= frames, traj_desc,
+                       ": ", trajectory.size(), " poses, fewer than the ",
+                       frames, " frames asked for");
+
+  // ---- Condition render ----
+  std::vector<Rigid3d> cam_from_world;
+  for (int i = 0; i < frames; ++i)
+    cam_from_world.push_back(trajectory.world_from_cam[i].Inverse());
+  RenderOptions ro = PresetRenderOptions(preset);
+  const int up = PresetUpsampleFactor(preset);
+  GEODRIVE_CHECK_INPUT(W % up == 0 && H % up == 0, "--preset ", a.preset,
+                       ": model size ", W, "x", H, " not divisible by ", up);
+  ro.width = W / up;
+  ro.height = H / up;
+  if (ro.mode == RenderMode::kSoft) ro.output_float_rgb = true;
+  ro.Check();
+  RenderResult rendered;
+  if (a.boxes.empty()) {
+    rendered = RenderFrames(cloud, {camera}, cam_from_world, ro);
+  } else {
+    EditCliArgs edit;
+    edit.boxes_path = a.boxes;
+    edit.edit_mode = a.edit_mode;
+    DynamicEditResult r =
+        ApplyEditsAndRender(edit, cloud, {camera}, cam_from_world, ro, image);
+    std::cerr << r.summary.BriefReport() << "\n";
+    rendered = std::move(r).ToRenderResult();
+  }
+  std::vector<cv::Mat> cond =
+      FinalFrames(rendered, preset,
+                  preset == RenderPreset::kGeodriveCompat ? image : cv::Mat());
+  const fs::path out_path(a.out);
+  const fs::path dir =
+      out_path.has_parent_path() ? out_path.parent_path() : fs::path(".");
+  const std::string stem = out_path.stem().string();
+  const Weights vae = LoadVae(a, m.vc);
+  std::cout << GenerateVideo(a, m, vae, image, cond, frames, a.out,
+                             (dir / (stem + "_preview.png")).string(),
+                             dir / (stem + "_latents"))
+            << "; condition render from " << cloud.size()
+            << " points, mean coverage " << std::fixed << std::setprecision(3)
+            << rendered.summary.mean_coverage << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+// Registers `generate` on the geodrive-diffusion CLI; `run` is set when it is
+// chosen.
+void AddGenerateCommand(CLI::App* app, std::function<int()>* run) {
+  auto a = std::make_shared<GenerateArgs>();
+  CLI::App* g = app->add_subcommand(
+      "generate",
+      "Generate a video from a first frame and a trajectory: condition render, "
+      "VAE encode, sample, VAE decode; writes MP4 + preview PNG");
+  g->add_option("--image", a->image,
+                "first frame (RGB image; with --geometry the default is the "
+                "folder's frame_0000.png)");
+  g->add_option("--trajectory", a->trajectory,
+                "camera trajectory (JSON, TUM or pred_traj.txt), taken "
+                "relative to its first pose (default with --geometry: the "
+                "folder's pred_traj.txt)");
+  g->add_option(
+      "--boxes", a->boxes,
+      "boxes JSON: dynamic objects rendered along their box tracks "
+      "(render/dynamic_edit.h); its num_frames must equal the frame count");
+  g->add_option("--edit-mode", a->edit_mode, "dynamic editing: 3d or 2d")
+      ->capture_default_str();
+  g->add_option("--geometry", a->geometry,
+                "MonST3R output folder (frame-0 depth, intrinsics, poses)");
+  g->add_option("--depth", a->depth,
+                "frame-0 depth .npy (H, W) of --image (instead of --geometry)");
+  g->add_option("--intrinsics", a->intrinsics, "K.txt for --depth");
+  g->add_option("--config", a->config, "preset: tiny or cogvideox-5b-i2v")
+      ->capture_default_str();
+  g->add_option("--weights", a->weights,
+                "backbone checkpoint (.safetensors or .index.json; an "
+                "init-weights file also holds the encoder)")
+      ->required();
+  g->add_option("--branch-weights", a->branch_weights,
+                "encoder checkpoint (default: see `sample --help`)");
+  g->add_option("--vae-weights", a->vae_weights,
+                "VAE checkpoint (diffusers vae/diffusion_pytorch_model."
+                "safetensors); default with --config tiny: random VAE from "
+                "--seed (tests only)");
+  g->add_option("--prompt-embeds", a->prompt_embeds,
+                "prompt embeddings safetensors (see `sample --help`)");
+  g->add_option("--frames", a->frames,
+                "output frames (<= the model's 1 + 4(F'-1); default: min of "
+                "that and the trajectory length)");
+  g->add_option("--out", a->out,
+                "output video.mp4 (also writes <stem>_preview.png and "
+                "<stem>_latents/)");
+  g->add_option("--manifest", a->manifest,
+                "batch mode: build-dataset manifest.jsonl; one video per pair "
+                "from its first GT frame and condition video");
+  g->add_option("--out-dir", a->out_dir,
+                "batch mode: folder of <clip_id>.mp4 (for `geodrive eval`); "
+                "previews and latents go to <out-dir>_work/");
+  g->add_option("--limit", a->limit, "batch mode: at most N pairs (0: all)")
+      ->capture_default_str();
+  g->add_option("--preset", a->preset,
+                "condition render preset: paper or geodrive-compat")
+      ->capture_default_str();
+  g->add_option("--steps", a->steps, "inference steps")->capture_default_str();
+  g->add_option("--seed", a->seed, "noise seed")->capture_default_str();
+  g->add_option("--scheduler", a->scheduler, "dpm or ddim")
+      ->capture_default_str();
+  g->add_option("--guidance", a->guidance, "classifier-free guidance scale")
+      ->capture_default_str();
+  g->add_flag("--dynamic-cfg", a->dynamic_cfg, "CogVideoX dynamic guidance");
+  g->add_option("--conditioning-scale", a->conditioning_scale,
+                "encoder output scale")
+      ->capture_default_str();
+  g->add_option("--fps", a->fps, "video frame rate")->capture_default_str();
+  g->add_flag("--no-progress", a->no_progress, "no progress bar");
+  g->callback([run, a] { *run = [a] { return RunGenerate(*a); }; });
+}
+
+}  // namespace diffusion
+}  // namespace geodrive
