@@ -30,6 +30,7 @@
 #include "geometry/monst3r.h"
 #include "geometry/npy.h"
 #include "geometry/point_cloud_io.h"
+#include "geometry/pointmap.h"
 #include "geometry/status.h"
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
@@ -114,30 +115,6 @@ PinholeCamera ReadIntrinsicsFile(const std::string& path,
   const PinholeCamera camera = PinholeCamera::FromK(K, width, height);
   camera.Check(path);
   return camera;
-}
-
-// Unprojects every pixel with finite positive depth (integer-index convention,
-// as MonST3R does) into the camera frame (or `world_from_cam`), coloured by
-// `rgb`.
-PointCloud CloudFromDepth(const cv::Mat& depth,
-                          const cv::Mat& rgb,
-                          const PinholeCamera& camera,
-                          const Rigid3d& world_from_cam) {
-  PointCloud cloud;
-  cloud.Reserve(depth.total());
-  for (int j = 0; j < depth.rows; ++j) {
-    for (int i = 0; i < depth.cols; ++i) {
-      const float z = depth.at<float>(j, i);
-      if (!(z > 0) || !std::isfinite(z)) continue;
-      const Eigen::Vector3d p =
-          world_from_cam * camera.Unproject(Eigen::Vector2d(i, j), z,
-                                            PixelConvention::kIntegerIndex);
-      cloud.positions.push_back(p.cast<float>());
-      const cv::Vec3b c = rgb.at<cv::Vec3b>(j, i);
-      cloud.colors.push_back(Color3u8(c[0], c[1], c[2]));
-    }
-  }
-  return cloud;
 }
 
 cv::Mat ReadDepthNpy(const std::string& path) {

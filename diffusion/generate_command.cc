@@ -43,6 +43,7 @@
 #include "geometry/monst3r.h"
 #include "geometry/npy.h"
 #include "geometry/point_cloud.h"
+#include "geometry/pointmap.h"
 #include "geometry/status.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_json.h"
@@ -110,29 +111,6 @@ cv::Mat ReadDepth(const std::string& path) {
   cv::Mat depth(static_cast<int>(shape[0]), static_cast<int>(shape[1]), CV_32F);
   std::memcpy(depth.data, a.Data<float>(), depth.total() * sizeof(float));
   return depth;
-}
-
-// Every pixel with finite positive depth (integer-index convention, as
-// MonST3R), coloured by `rgb`, in `world_from_cam`'s frame.
-PointCloud CloudFromDepth(const cv::Mat& depth,
-                          const cv::Mat& rgb,
-                          const PinholeCamera& camera,
-                          const Rigid3d& world_from_cam) {
-  PointCloud cloud;
-  cloud.Reserve(depth.total());
-  for (int j = 0; j < depth.rows; ++j) {
-    for (int i = 0; i < depth.cols; ++i) {
-      const float z = depth.at<float>(j, i);
-      if (!(z > 0) || !std::isfinite(z)) continue;
-      const Eigen::Vector3d p =
-          world_from_cam * camera.Unproject(Eigen::Vector2d(i, j), z,
-                                            PixelConvention::kIntegerIndex);
-      cloud.positions.push_back(p.cast<float>());
-      const cv::Vec3b c = rgb.at<cv::Vec3b>(j, i);
-      cloud.colors.push_back(Color3u8(c[0], c[1], c[2]));
-    }
-  }
-  return cloud;
 }
 
 // RGB uint8 frames -> [1, 3, F, H, W] float32 in [-1, 1].

@@ -217,4 +217,25 @@ PointCloud ExtractPoints(const Pointmap& pm,
   return cloud;
 }
 
+PointCloud CloudFromDepth(const cv::Mat& depth,
+                          const cv::Mat& rgb,
+                          const PinholeCamera& camera,
+                          const Rigid3d& world_from_cam) {
+  PointCloud cloud;
+  cloud.Reserve(depth.total());
+  for (int j = 0; j < depth.rows; ++j) {
+    for (int i = 0; i < depth.cols; ++i) {
+      const float z = depth.at<float>(j, i);
+      if (!(z > 0) || !std::isfinite(z)) continue;
+      const Eigen::Vector3d p =
+          world_from_cam * camera.Unproject(Eigen::Vector2d(i, j), z,
+                                            PixelConvention::kIntegerIndex);
+      cloud.positions.push_back(p.cast<float>());
+      const cv::Vec3b c = rgb.at<cv::Vec3b>(j, i);
+      cloud.colors.push_back(Color3u8(c[0], c[1], c[2]));
+    }
+  }
+  return cloud;
+}
+
 }  // namespace geodrive

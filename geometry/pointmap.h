@@ -113,4 +113,13 @@ PointCloud ExtractPoints(const Pointmap& pointmap,
                          std::vector<PointProvenance>* provenance = nullptr,
                          std::vector<float>* depths = nullptr);
 
+// Every pixel of a z-depth map (CV_32F) with finite positive depth, unprojected
+// at its integer index (as MonST3R) and moved by `world_from_cam`, coloured by
+// `rgb` (CV_8UC3 RGB, same size) — a single image + depth as a renderable
+// cloud.
+PointCloud CloudFromDepth(const cv::Mat& depth,
+                          const cv::Mat& rgb,
+                          const PinholeCamera& camera,
+                          const Rigid3d& world_from_cam);
+
 }  // namespace geodrive
