@@ -232,5 +232,17 @@ LoadReport CompareStateDict(const std::string& source,
   return r;
 }
 
+void CheckBranchLoadReport(const LoadReport& report) {
+  for (const auto& name : report.missing) {
+    if (!IsUnusedBranchParam(name)) {
+      ThrowInputError(report.source, "encoder checkpoint lacks '", name, "' (",
+                      report.missing.size(), " missing)");
+    }
+  }
+  GEODRIVE_CHECK_INPUT(report.mismatched.empty(), report.source,
+                       ": encoder shape mismatch: ",
+                       report.mismatched.empty() ? "" : report.mismatched[0]);
+}
+
 }  // namespace diffusion
 }  // namespace geodrive

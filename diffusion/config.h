@@ -98,6 +98,11 @@ struct LoadReport {
   std::string Summary(size_t max_list = 10) const;
 };
 
+// Throws InputError naming the checkpoint when an encoder (branch) checkpoint
+// lacks a tensor the forward pass uses (unused heads may be missing) or has a
+// shape mismatch.
+void CheckBranchLoadReport(const LoadReport& report);
+
 // Compares names/shapes (`file` = name+shape of each stored tensor) against
 // `expected`.
 LoadReport CompareStateDict(const std::string& source,

@@ -160,15 +160,7 @@ SampleResult Sample(const SampleOptions& o) {
   if (!o.branch_weights.empty() || HasPrefix(o.weights, "branch.")) {
     // The heads of the branch checkpoint are unused: only the used tensors must
     // be present.
-    for (const auto& name : report.missing) {
-      if (!IsUnusedBranchParam(name)) {
-        ThrowInputError(report.source, "encoder checkpoint lacks '", name,
-                        "' (", report.missing.size(), " missing)");
-      }
-    }
-    GEODRIVE_CHECK_INPUT(report.mismatched.empty(), report.source,
-                         ": encoder shape mismatch: ",
-                         report.mismatched.empty() ? "" : report.mismatched[0]);
+    CheckBranchLoadReport(report);
   }
 
   at::Tensor cond = LoadOne(o.cond_latents, "latents");

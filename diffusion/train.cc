@@ -408,15 +408,7 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
   } else {
     m.branch = LoadWeights(branch_path, BranchParamSpecs(m.cfg), branch_prefix,
                            false, &report);
-    for (const auto& name : report.missing) {
-      if (!IsUnusedBranchParam(name)) {
-        ThrowInputError(report.source, "encoder checkpoint lacks '", name,
-                        "' (", report.missing.size(), " missing)");
-      }
-    }
-    GEODRIVE_CHECK_INPUT(report.mismatched.empty(), report.source,
-                         ": encoder shape mismatch: ",
-                         report.mismatched.empty() ? "" : report.mismatched[0]);
+    CheckBranchLoadReport(report);
   }
   // Frozen: backbone and VAE. Trained: the encoder's used tensors.
   m.backbone.SetRequiresGrad(false);
