@@ -25,12 +25,13 @@ function(geodrive_add_library)
   install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/geodrive/${folder})
 endfunction()
 
-# geodrive_add_test(MODULE <module> [SRCS ...] LINK_LIBS ...)
+# geodrive_add_test(MODULE <module> [SRCS ...] LINK_LIBS ... [ENVIRONMENT VAR=value])
 #
 # One GoogleTest executable per module (tests/<module>/*_test.cc by default), linked to the shared
-# seeded test main; each TEST becomes a CTest test named <module>/<Suite>.<Name>, labelled <module>.
+# seeded test main; each TEST becomes a CTest test named <module>/<Suite>.<Name>, labelled <module>,
+# run with ENVIRONMENT (one VAR=value) when given.
 function(geodrive_add_test)
-  cmake_parse_arguments(ARG "" "MODULE" "SRCS;LINK_LIBS" ${ARGN})
+  cmake_parse_arguments(ARG "" "MODULE;ENVIRONMENT" "SRCS;LINK_LIBS" ${ARGN})
   if(NOT ARG_SRCS)
     file(GLOB ARG_SRCS CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
   endif()
@@ -42,9 +43,13 @@ function(geodrive_add_test)
   add_executable(${target} ${ARG_SRCS})
   target_compile_options(${target} PRIVATE ${GEODRIVE_WARNINGS})
   target_link_libraries(${target} PRIVATE geodrive_test_main ${ARG_LINK_LIBS})
+  set(props LABELS ${ARG_MODULE})
+  if(ARG_ENVIRONMENT)
+    list(APPEND props ENVIRONMENT ${ARG_ENVIRONMENT})
+  endif()
   gtest_discover_tests(${target}
     TEST_PREFIX "${ARG_MODULE}/"
-    PROPERTIES LABELS ${ARG_MODULE}
+    PROPERTIES ${props}
     DISCOVERY_MODE PRE_TEST
     DISCOVERY_TIMEOUT 60)
 endfunction()
