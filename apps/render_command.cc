@@ -84,52 +84,6 @@ void ParseSize(const std::string& text, int* height, int* width) {
   }
 }
 
-// A 3x3 K from a text file: 9 numbers (MonST3R pred_intrinsics.txt line, or 3
-// rows of 3); with several frames (9*N numbers) the first K is used.
-PinholeCamera ReadIntrinsicsFile(const std::string& path,
-                                 int width,
-                                 int height) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, "cannot open intrinsics file");
-  std::vector<double> values;
-  std::string token;
-  while (in >> token) {
-    try {
-      size_t used = 0;
-      values.push_back(std::stod(token, &used));
-      if (used != token.size()) throw std::invalid_argument(token);
-    } catch (const std::logic_error&) {
-      ThrowInputError(path, "'", token, "' is not a number");
-    }
-  }
-  if (values.size() < 9 || values.size() % 9 != 0) {
-    ThrowInputError(path, values.size(),
-                    " numbers (expected a 3x3 K: 9 per frame)");
-  }
-  Eigen::Matrix3d K;
-  for (int i = 0; i < 9; ++i) K(i / 3, i % 3) = values[i];
-  GEODRIVE_CHECK_INPUT(K.allFinite(), path, ": non-finite value in K");
-  GEODRIVE_CHECK_INPUT(K(1, 0) == 0 && K(2, 0) == 0 && K(2, 1) == 0 &&
-                           K(2, 2) == 1 && K(0, 1) == 0,
-                       path, ": not a pinhole K [[fx,0,cx],[0,fy,cy],[0,0,1]]");
-  const PinholeCamera camera = PinholeCamera::FromK(K, width, height);
-  camera.Check(path);
-  return camera;
-}
-
-cv::Mat ReadDepthNpy(const std::string& path) {
-  const NpyArray a = ReadNpyAsFloat32(path);
-  std::vector<int64_t> shape = a.shape;
-  while (shape.size() > 2 && shape.front() == 1) shape.erase(shape.begin());
-  while (shape.size() > 2 && shape.back() == 1) shape.pop_back();
-  GEODRIVE_CHECK_INPUT(shape.size() == 2 && shape[0] > 0 && shape[1] > 0 &&
-                           shape[0] <= 16384 && shape[1] <= 16384,
-                       path, ": expected a (H, W) depth array");
-  cv::Mat depth(static_cast<int>(shape[0]), static_cast<int>(shape[1]), CV_32F);
-  std::memcpy(depth.data, a.Data<float>(), depth.total() * sizeof(float));
-  return depth;
-}
-
 std::string Fixed(double v, int digits) {
   std::ostringstream os;
   os << std::fixed << std::setprecision(digits) << v;

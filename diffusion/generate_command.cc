@@ -73,46 +73,6 @@ struct GenerateArgs {
   bool dynamic_cfg = false, no_progress = false;
 };
 
-// A 3x3 K from a text file (9 numbers; with 9*N numbers the first K is used).
-PinholeCamera ReadIntrinsics(const std::string& path, int width, int height) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, "cannot open intrinsics file");
-  std::vector<double> v;
-  std::string token;
-  while (in >> token) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(token, &used));
-      if (used != token.size()) throw std::invalid_argument(token);
-    } catch (const std::logic_error&) {
-      ThrowInputError(path, "'", token, "' is not a number");
-    }
-  }
-  GEODRIVE_CHECK_INPUT(v.size() >= 9 && v.size() % 9 == 0, path, ": ", v.size(),
-                       " numbers (expected a 3x3 K: 9 per frame)");
-  Eigen::Matrix3d K;
-  for (int i = 0; i < 9; ++i) K(i / 3, i % 3) = v[i];
-  GEODRIVE_CHECK_INPUT(K.allFinite() && K(1, 0) == 0 && K(2, 0) == 0 &&
-                           K(2, 1) == 0 && K(2, 2) == 1 && K(0, 1) == 0,
-                       path, ": not a pinhole K [[fx,0,cx],[0,fy,cy],[0,0,1]]");
-  const PinholeCamera camera = PinholeCamera::FromK(K, width, height);
-  camera.Check(path);
-  return camera;
-}
-
-cv::Mat ReadDepth(const std::string& path) {
-  const NpyArray a = ReadNpyAsFloat32(path);
-  std::vector<int64_t> shape = a.shape;
-  while (shape.size() > 2 && shape.front() == 1) shape.erase(shape.begin());
-  while (shape.size() > 2 && shape.back() == 1) shape.pop_back();
-  GEODRIVE_CHECK_INPUT(shape.size() == 2 && shape[0] > 0 && shape[1] > 0 &&
-                           shape[0] <= 16384 && shape[1] <= 16384,
-                       path, ": expected a (H, W) depth array");
-  cv::Mat depth(static_cast<int>(shape[0]), static_cast<int>(shape[1]), CV_32F);
-  std::memcpy(depth.data, a.Data<float>(), depth.total() * sizeof(float));
-  return depth;
-}
-
 // RGB uint8 frames -> [1, 3, F, H, W] float32 in [-1, 1].
 at::Tensor FramesToTensor(const std::vector<cv::Mat>& frames) {
   std::vector<at::Tensor> ts;
@@ -380,11 +340,11 @@ int RunGenerate(const GenerateArgs& a) {
         "--depth needs --image, --intrinsics and "
         "--trajectory");
     image = ReadImageRgb(a.image);
-    const cv::Mat depth = ReadDepth(a.depth);
+    const cv::Mat depth = ReadDepthNpy(a.depth);
     GEODRIVE_CHECK_INPUT(depth.size() == image.size(), a.depth, ": depth is ",
                          depth.cols, "x", depth.rows, " but ", a.image, " is ",
                          image.cols, "x", image.rows);
-    camera = ReadIntrinsics(a.intrinsics, depth.cols, depth.rows);
+    camera = ReadIntrinsicsFile(a.intrinsics, depth.cols, depth.rows);
     cloud = CloudFromDepth(depth, image, camera, Rigid3d());
     trajectory = trajectory.RelativeToFirst();
   }

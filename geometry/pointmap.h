@@ -113,6 +113,19 @@ PointCloud ExtractPoints(const Pointmap& pointmap,
                          std::vector<PointProvenance>* provenance = nullptr,
                          std::vector<float>* depths = nullptr);
 
+// A single 3x3 K from a text file: 9 numbers in any whitespace layout (a
+// MonST3R pred_intrinsics.txt line, or 3 rows of 3); with 9*N numbers the first
+// K is used. Throws InputError naming the file for a missing file, a token that
+// is not a number, a count that is not a multiple of 9, or a K that is not
+// [[fx,0,cx],[0,fy,cy],[0,0,1]] with finite values and positive focals.
+PinholeCamera ReadIntrinsicsFile(const std::string& path,
+                                 int width,
+                                 int height);
+
+// A z-depth map from an .npy of shape (H, W) (leading/trailing axes of size 1
+// are dropped), as CV_32F. Throws InputError naming the file otherwise.
+cv::Mat ReadDepthNpy(const std::string& path);
+
 // Every pixel of a z-depth map (CV_32F) with finite positive depth, unprojected
 // at its integer index (as MonST3R) and moved by `world_from_cam`, coloured by
 // `rgb` (CV_8UC3 RGB, same size) — a single image + depth as a renderable
