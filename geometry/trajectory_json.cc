@@ -26,16 +26,7 @@ bool EndsWith(const std::string& s, const std::string& suffix) {
 
 Trajectory ReadTrajectoryJson(const std::string& path,
                               TrajectoryFileInfo* info) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, "cannot open trajectory file");
-  json root;
-  try {
-    root = json::parse(in);
-  } catch (const json::exception& e) {
-    ThrowInputError(path, "malformed JSON (", e.what(), ")");
-  }
-  if (!root.is_object())
-    ThrowInputError(path, "top level must be a JSON object");
+  const json root = internal::ReadJsonObjectFile(path, "trajectory file");
   if (root.value("format", "") != "geodrive-trajectory") {
     ThrowInputError(path, "\"format\" must be \"geodrive-trajectory\"");
   }

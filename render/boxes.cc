@@ -224,16 +224,7 @@ void BoxSequences::Check(const std::string& what) const {
 }
 
 BoxSequences ReadBoxesJson(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, "cannot open boxes file");
-  json root;
-  try {
-    root = json::parse(in);
-  } catch (const json::exception& e) {
-    ThrowInputError(path, "malformed JSON (", e.what(), ")");
-  }
-  if (!root.is_object())
-    ThrowInputError(path, "top level must be a JSON object");
+  const json root = internal::ReadJsonObjectFile(path, "boxes file");
   CheckKeys(path, root, "top level",
             {"format", "version", "image_width", "image_height", "num_frames",
              "units", "instances", "description"});

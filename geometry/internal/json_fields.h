@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -13,6 +14,23 @@
 
 namespace geodrive {
 namespace internal {
+
+// The top-level JSON object of a file; `what` names the file kind in the
+// "cannot open" error ("trajectory file", "boxes file").
+inline nlohmann::json ReadJsonObjectFile(const std::string& path,
+                                         const std::string& what) {
+  std::ifstream in(path);
+  if (!in) ThrowInputError(path, "cannot open ", what);
+  nlohmann::json root;
+  try {
+    root = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    ThrowInputError(path, "malformed JSON (", e.what(), ")");
+  }
+  if (!root.is_object())
+    ThrowInputError(path, "top level must be a JSON object");
+  return root;
+}
 
 // A finite number.
 inline double JsonNumber(const std::string& path,
