@@ -1,5 +1,8 @@
 #include "geometry/point_cloud.h"
 
+#include <cstdint>
+#include <cstring>
+
 #include "geometry/status.h"
 
 namespace geodrive {
@@ -17,6 +20,18 @@ void PointCloud::Check(const std::string& what) const {
   check(instance_ids.size(), "instance_ids");
   check(intensity.size(), "intensity");
   check(ring.size(), "ring");
+  // Branch-free scan first (a float is finite iff its exponent bits are not
+  // all ones; the loop vectorises), then locate the first bad point for the
+  // message.
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "packed positions");
+  const float* values = n ? positions[0].data() : nullptr;
+  uint32_t bad = 0;
+  for (size_t k = 0; k < 3 * n; ++k) {
+    uint32_t u;
+    std::memcpy(&u, values + k, sizeof u);
+    bad |= static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
+  }
+  if (!bad) return;
   for (size_t i = 0; i < n; ++i) {
     GEODRIVE_CHECK_INPUT(positions[i].allFinite(), what, ": point ", i, " is not finite");
   }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <exception>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -103,6 +104,18 @@ cv::Rect PixelWindow(const Box2d& b, int width, int height) {
   return cv::Rect(x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0));
 }
 
+// 1 if the sign bit of v is set (v < 0 or -0), else 0; branch-free.
+inline uint64_t SignBit(double v) {
+  uint64_t u;
+  std::memcpy(&u, &v, sizeof u);
+  return u >> 63;
+}
+inline uint32_t SignBit(float v) {
+  uint32_t u;
+  std::memcpy(&u, &v, sizeof u);
+  return u >> 31;
+}
+
 // Signed distance of a point to the plane (n, d).
 inline double PlaneDistance(const Eigen::Vector4d& plane,
                             const Eigen::Vector3d& p) {
@@ -122,12 +135,24 @@ std::optional<Eigen::Vector4d> EstimateGroundPlane(
       1, candidates.size() / std::max(3, options.ground_ransac_samples));
   for (size_t k = 0; k < candidates.size(); k += stride)
     sample.push_back(positions[candidates[k]].cast<double>());
+  // Structure of arrays for the scoring loop (it vectorises).
+  const size_t m = sample.size();
+  std::vector<double> sx(m), sy(m), sz(m);
+  for (size_t k = 0; k < m; ++k) {
+    sx[k] = sample[k].x();
+    sy[k] = sample[k].y();
+    sz[k] = sample[k].z();
+  }
   const double cos_tilt = std::cos(options.ground_max_tilt_deg * M_PI / 180.0);
   std::mt19937 rng(12345);
   std::uniform_int_distribution<size_t> pick(0, sample.size() - 1);
   Eigen::Vector4d best_plane = Eigen::Vector4d::Zero();
-  size_t best_count = 0;
-  for (int it = 0; it < options.ground_ransac_iterations; ++it) {
+  uint64_t best_count = 0;
+  // Adaptive stop (as in COLMAP's RANSAC): after the best hypothesis so far
+  // has inlier ratio w, an all-inlier triple has been drawn with probability
+  // >= confidence once 1 - (1 - w^3)^it >= confidence.
+  int max_iterations = options.ground_ransac_iterations;
+  for (int it = 0; it < max_iterations; ++it) {
     const Eigen::Vector3d& a = sample[pick(rng)];
     const Eigen::Vector3d& b = sample[pick(rng)];
     const Eigen::Vector3d& c = sample[pick(rng)];
@@ -137,12 +162,24 @@ std::optional<Eigen::Vector4d> EstimateGroundPlane(
     if (n.dot(up) < 0) n = -n;
     if (n.dot(up) < cos_tilt) continue;
     const Eigen::Vector4d plane(n.x(), n.y(), n.z(), -n.dot(a));
-    size_t count = 0;
-    for (const Eigen::Vector3d& p : sample)
-      count += std::abs(PlaneDistance(plane, p)) < options.ground_margin;
+    const double nx = n.x(), ny = n.y(), nz = n.z(), d = plane[3];
+    const double margin = options.ground_margin;
+    // |distance| < margin <=> the sign bit of |distance| - margin (a float
+    // compare would keep the loop from vectorising under -ftrapping-math).
+    uint64_t count = 0;
+    for (size_t k = 0; k < m; ++k)
+      count +=
+          SignBit(std::abs(nx * sx[k] + ny * sy[k] + nz * sz[k] + d) - margin);
     if (count > best_count) {
       best_count = count;
       best_plane = plane;
+      const double w = double(count) / double(m);
+      const double miss = 1.0 - w * w * w;
+      if (miss <= 0.0) break;
+      const double needed = std::ceil(
+          std::log(1.0 - options.ground_ransac_confidence) / std::log(miss));
+      if (needed < max_iterations)
+        max_iterations = std::max(it + 1, static_cast<int>(needed));
     }
   }
   if (best_count < std::max<size_t>(3, sample.size() / 20)) return std::nullopt;
@@ -406,42 +443,40 @@ void TransformInto(const DynamicObject& object,
   const Eigen::Vector3f t = pose.world_from_object.translation.cast<float>();
   const Eigen::Vector3f s = pose.scale.cast<float>();
   const Eigen::Matrix3f rs = r * s.asDiagonal();
-  const size_t n = object.points_in_object.size();
-  const bool colors = out->HasColors() || out->empty();
-  const bool has_colors = object.points_in_object.HasColors();
+  const PointCloud& src = object.points_in_object;
+  const size_t n = src.size();
+  const bool colors = (out->HasColors() || out->empty()) && src.HasColors();
   const int k =
       object.footprint_u.size() == n ? std::max(1, pose.subsamples) : 1;
+  const size_t kk = static_cast<size_t>(k) * k;
+  // Grow once, then write through raw pointers (no per-point push_back).
+  const size_t base = out->positions.size();
+  out->positions.resize(base + n * kk);
+  if (colors) out->colors.resize(base + n * kk);
+  out->instance_ids.resize(base + n * kk, object.render_id);
+  Eigen::Vector3f* pos = out->positions.data() + base;
   if (k == 1) {
-    for (size_t i = 0; i < n; ++i) {
-      out->positions.push_back(rs * object.points_in_object.positions[i] + t);
-    }
-    if (colors && has_colors) {
-      out->colors.insert(out->colors.end(),
-                         object.points_in_object.colors.begin(),
-                         object.points_in_object.colors.end());
-    }
-    out->instance_ids.insert(out->instance_ids.end(), n, object.render_id);
+    for (size_t i = 0; i < n; ++i) pos[i] = rs * src.positions[i] + t;
+    if (colors)
+      std::copy(src.colors.begin(), src.colors.end(),
+                out->colors.begin() + base);
     return;
   }
   // k x k samples over each point's frame-0 pixel footprint.
-  std::vector<float> offsets(k);
+  float offsets[16];
   for (int a = 0; a < k; ++a) offsets[a] = (a + 0.5f) / k - 0.5f;
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f p = rs * object.points_in_object.positions[i] + t;
+    const Eigen::Vector3f p = rs * src.positions[i] + t;
     const Eigen::Vector3f du = rs * object.footprint_u[i];
     const Eigen::Vector3f dv = rs * object.footprint_v[i];
+    Eigen::Vector3f* o = pos + i * kk;
     for (int b = 0; b < k; ++b) {
-      for (int a = 0; a < k; ++a) {
-        out->positions.push_back(p + offsets[a] * du + offsets[b] * dv);
-      }
+      const Eigen::Vector3f row = p + offsets[b] * dv;
+      for (int a = 0; a < k; ++a) *o++ = row + offsets[a] * du;
     }
-    if (colors && has_colors) {
-      out->colors.insert(out->colors.end(), k * k,
-                         object.points_in_object.colors[i]);
-    }
+    if (colors)
+      std::fill_n(out->colors.begin() + base + i * kk, kk, src.colors[i]);
   }
-  out->instance_ids.insert(out->instance_ids.end(), n * k * k,
-                           object.render_id);
 }
 
 // Sets ObjectPose::subsamples from the object's magnification in each frame.
@@ -565,6 +600,53 @@ struct FastBox {
   }
 };
 
+// Point positions as structure of arrays, for loops that vectorise.
+struct PositionsSoA {
+  std::vector<float> x, y, z;
+  explicit PositionsSoA(const std::vector<Eigen::Vector3f>& positions) {
+    const size_t n = positions.size();
+    x.resize(n);
+    y.resize(n);
+    z.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      x[i] = positions[i].x();
+      y[i] = positions[i].y();
+      z[i] = positions[i].z();
+    }
+  }
+};
+
+// Indices (ascending) of the points inside `box`: a bounding-sphere pass over
+// all points that vectorises, then the exact test on the few that pass.
+std::vector<size_t> PointsInBox(const std::vector<Eigen::Vector3f>& positions,
+                                const PositionsSoA& soa,
+                                const FastBox& box,
+                                std::vector<uint8_t>* near_scratch) {
+  const size_t n = positions.size();
+  std::vector<uint8_t>& near = *near_scratch;
+  near.assign(n + 8, 0);  // padded so the scan below reads whole words
+  const float* __restrict px = soa.x.data();
+  const float* __restrict py = soa.y.data();
+  const float* __restrict pz = soa.z.data();
+  uint8_t* __restrict out = near.data();
+  const float cx = box.center.x(), cy = box.center.y(), cz = box.center.z();
+  const float r2 = box.radius2;
+  for (size_t i = 0; i < n; ++i) {
+    const float dx = px[i] - cx, dy = py[i] - cy, dz = pz[i] - cz;
+    out[i] = static_cast<uint8_t>(SignBit(r2 - (dx * dx + dy * dy + dz * dz)) ^
+                                  1u);  // d^2 <= r2
+  }
+  std::vector<size_t> inside;
+  for (size_t w = 0; w < n; w += 8) {
+    uint64_t word;
+    std::memcpy(&word, out + w, 8);
+    if (word == 0) continue;
+    for (size_t i = w; i < std::min(n, w + 8); ++i)
+      if (out[i] && box.Contains(positions[i])) inside.push_back(i);
+  }
+  return inside;
+}
+
 bool InWindow(const cv::Rect& w, int u, int v) {
   return u >= w.x && u < w.x + w.width && v >= w.y && v < w.y + w.height;
 }
@@ -616,6 +698,9 @@ void DynamicEditOptions::Check() const {
       ground_ransac_iterations >= 1 && ground_ransac_samples >= 3,
       "dynamic edit options: need ground_ransac_iterations >= 1 and "
       "ground_ransac_samples >= 3");
+  GEODRIVE_CHECK_INPUT(
+      ground_ransac_confidence > 0 && ground_ransac_confidence < 1,
+      "dynamic edit options: ground_ransac_confidence must be in (0, 1)");
   GEODRIVE_CHECK_INPUT(dynamic_mask.empty() || dynamic_mask.type() == CV_8U,
                        "dynamic edit options: dynamic_mask must be CV_8U");
   GEODRIVE_CHECK_INPUT(std::isfinite(depth_gap_abs) && depth_gap_abs >= 0 &&
@@ -682,7 +767,7 @@ void DynamicScene::ComposeFrame(int frame, PointCloud* out) const {
   *out = PointCloud();
   out->positions = background.positions;
   out->colors = background.colors;
-  out->instance_ids = background.instance_ids;
+  out->instance_ids.assign(background.size(), -1);
   AppendObjects(*this, frame, out);
 }
 
@@ -764,6 +849,8 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
 
   // Segment every instance in frame 0.
   std::vector<char> taken(n, 0);
+  std::vector<uint8_t> near_scratch;
+  std::optional<PositionsSoA> soa;  // built for the first 3D box
   std::vector<std::optional<Segment>> segments(boxes.instances.size());
   for (size_t k = 0; k < boxes.instances.size(); ++k) {
     const BoxSequence& s = boxes.instances[k];
@@ -782,9 +869,10 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     if (t.box_3d[0]) {
       seg.box0 = *t.box_3d[0];
       const FastBox fast(*seg.box0, options.box_margin);
-      for (size_t i = 0; i < n; ++i) {
-        if (taken[i] || !fast.Contains(cloud_in_world.positions[i])) continue;
-        if (above_ground(i)) seg.indices.push_back(i);
+      if (!soa) soa.emplace(cloud_in_world.positions);
+      for (size_t i :
+           PointsInBox(cloud_in_world.positions, *soa, fast, &near_scratch)) {
+        if (!taken[i] && above_ground(i)) seg.indices.push_back(i);
       }
     } else {
       const Box2d box = *PixelBox(t, 0, boxes, camera0, pose0);
@@ -854,10 +942,15 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     if (seg.box0) {
       const std::optional<Box2d> b = PixelBox(t, 0, boxes, camera0, pose0);
       if (b) seg.lift.box0 = *b;
+      // Camera-0 z: the third row of cam_from_world.
+      const Eigen::Vector3d zrow =
+          pose0.rotation.toRotationMatrix().row(2).transpose();
+      const double tz = pose0.translation.z();
       std::vector<double> depths;
+      depths.reserve(seg.indices.size());
       for (size_t i : seg.indices)
-        depths.push_back(
-            (pose0 * cloud_in_world.positions[i].cast<double>()).z());
+        depths.push_back(zrow.dot(cloud_in_world.positions[i].cast<double>()) +
+                         tz);
       std::nth_element(depths.begin(), depths.begin() + depths.size() / 2,
                        depths.end());
       seg.lift.depth0 = depths[depths.size() / 2];
@@ -873,12 +966,23 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     segments[k] = std::move(seg);
   }
 
-  // Background: everything not segmented.
-  std::vector<size_t> keep;
-  keep.reserve(n);
-  for (size_t i = 0; i < n; ++i)
-    if (!taken[i]) keep.push_back(i);
-  scene.background = StripForRender(cloud_in_world, keep);
+  // Background: everything not segmented (positions and colours only).
+  {
+    size_t num_taken = 0;
+    for (size_t i = 0; i < n; ++i) num_taken += taken[i] != 0;
+    const size_t m = n - num_taken;
+    PointCloud& bg = scene.background;
+    bg.positions.resize(m);
+    const bool colors = cloud_in_world.HasColors();
+    if (colors) bg.colors.resize(m);
+    size_t j = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (taken[i]) continue;
+      bg.positions[j] = cloud_in_world.positions[i];
+      if (colors) bg.colors[j] = cloud_in_world.colors[i];
+      ++j;
+    }
+  }
 
   auto make_object = [&](const Segment& seg, const std::string& id,
                          const std::string& source) {
@@ -890,13 +994,25 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     const Rigid3d object_from_world =
         seg.box0 ? seg.box0->WorldFromBox().Inverse() : Rigid3d();
     const Rigid3d world_from_cam0 = pose0.Inverse();
-    const Eigen::Matrix3d r = object_from_world.rotation.toRotationMatrix() *
-                              world_from_cam0.rotation.toRotationMatrix();
-    for (Eigen::Vector3f& p : object.points_in_object.positions) {
-      const double z = (pose0 * p.cast<double>()).z();
-      object.footprint_u.push_back((r.col(0) * (z / camera0.fx)).cast<float>());
-      object.footprint_v.push_back((r.col(1) * (z / camera0.fy)).cast<float>());
-      p = (object_from_world * p.cast<double>()).cast<float>();
+    const Eigen::Matrix3d object_r =
+        object_from_world.rotation.toRotationMatrix();
+    const Eigen::Vector3d object_t = object_from_world.translation;
+    const Eigen::Matrix3d r =
+        object_r * world_from_cam0.rotation.toRotationMatrix();
+    // Camera-0 z: the third row of cam_from_world.
+    const Eigen::Vector3d zrow =
+        pose0.rotation.toRotationMatrix().row(2).transpose();
+    const double tz = pose0.translation.z();
+    const size_t m = object.points_in_object.size();
+    object.footprint_u.resize(m);
+    object.footprint_v.resize(m);
+    for (size_t i = 0; i < m; ++i) {
+      Eigen::Vector3f& p = object.points_in_object.positions[i];
+      const Eigen::Vector3d pd = p.cast<double>();
+      const double z = zrow.dot(pd) + tz;
+      object.footprint_u[i] = (r.col(0) * (z / camera0.fx)).cast<float>();
+      object.footprint_v[i] = (r.col(1) * (z / camera0.fy)).cast<float>();
+      p = (object_r * pd + object_t).cast<float>();
     }
     return object;
   };
@@ -1110,7 +1226,9 @@ DynamicEditResult Render2d(const PointCloud& cloud_in_world,
       static_cast<int64_t>(cloud_in_world.size() - keep.size());
   const PointCloud background = StripForRender(cloud_in_world, keep);
 
-  // 2. Static render.
+  // 2. Static render (the instance map marks pasted pixels; dropped at the end
+  // unless asked for).
+  const bool want_instance = render_options.output_instance;
   render_options.output_instance = true;
   if (background.empty()) {
     result.frames.assign(num_frames, RenderedFrame());
@@ -1220,6 +1338,7 @@ DynamicEditResult Render2d(const PointCloud& cloud_in_world,
     const size_t npix = frame.mask.total();
     for (size_t p = 0; p < npix; ++p)
       if (inst[p] >= 0) mask[p] = kMaskValid;
+    if (!want_instance) frame.instance.release();
   }
   summary.num_objects = static_cast<int>(result.render_ids.size());
   return result;
@@ -1253,7 +1372,6 @@ DynamicEditResult RenderWithDynamicEdits(
     for (const DynamicObject& o : scene.objects)
       result.render_ids.push_back(o.id);
     RenderOptions ro = render_options;
-    ro.output_instance = true;
     ro.num_threads = options.num_threads > 0 ? options.num_threads
                                              : (render_options.num_threads > 0
                                                     ? render_options.num_threads

@@ -98,7 +98,10 @@ struct DynamicEditOptions {
   // RANSAC: candidate normals within this angle of camera 0's up axis (-y);
   // inlier distance is `ground_margin`.
   double ground_max_tilt_deg = 25.0;
+  // At most this many hypotheses; fewer once an all-inlier sample has been
+  // drawn with probability `ground_ransac_confidence` (adaptive stop).
   int ground_ransac_iterations = 200;
+  double ground_ransac_confidence = 0.999;
   int ground_ransac_samples =
       4000;  // points scored per hypothesis (deterministic subsample)
   // Optional frame-0 dynamic mask (CV_8U, nonzero = dynamic; any size, sampled
@@ -190,7 +193,7 @@ struct DynamicObject {
 // poses.
 struct DynamicScene {
   int num_frames = 0;
-  PointCloud background;  // instance_ids all -1
+  PointCloud background;  // positions and colours (no instance ids: -1)
   std::vector<DynamicObject> objects;
 
   // Background followed by every object drawn in `frame` (instance_ids =
@@ -233,8 +236,9 @@ bool PasteFeathered(const cv::Mat& source,
 // ---- Render with edits.
 
 struct DynamicEditResult {
-  // Per frame. `instance` holds the render id per pixel (3D: the front-most
-  // point's object; 2D: the pasted instance where alpha >= 0.5), -1 elsewhere.
+  // Per frame. With RenderOptions::output_instance, `instance` holds the render
+  // id per pixel (3D: the front-most point's object; 2D: the pasted instance
+  // where alpha >= 0.5), -1 elsewhere; without it `instance` is empty.
   std::vector<RenderedFrame> frames;
   std::vector<std::string> render_ids;  // render id -> instance id
   DynamicEditSummary summary;
@@ -243,9 +247,9 @@ struct DynamicEditResult {
   RenderResult ToRenderResult() &&;
 };
 
-// Renders the clip with the edits applied (mode from `options`).
-// `render_options.output_instance` is forced on. Throws InputError on bad input
-// (see the file comment).
+// Renders the clip with the edits applied (mode from `options`). Set
+// `render_options.output_instance` for the per-pixel object ids. Throws
+// InputError on bad input (see the file comment).
 DynamicEditResult RenderWithDynamicEdits(
     const PointCloud& cloud_in_world,
     const std::vector<PinholeCamera>& cameras,

@@ -47,6 +47,7 @@ RenderOptions TestRenderOptions(const Scene& scene) {
   o.radius_px = 0;
   o.hole_fill = false;  // the paper's z-buffer: one pixel per point, no filling
   o.far = 1000;
+  o.output_instance = true;  // the tests score the per-pixel object ids
   return o;
 }
 
