@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
@@ -434,49 +435,66 @@ std::vector<std::optional<ObjectPose>> TrackPoses(
   return poses;
 }
 
-void TransformInto(const DynamicObject& object,
-                   const ObjectPose& pose,
-                   PointCloud* out) {
-  const Eigen::Matrix3f r = pose.world_from_object.rotation.normalized()
-                                .toRotationMatrix()
-                                .cast<float>();
-  const Eigen::Vector3f t = pose.world_from_object.translation.cast<float>();
-  const Eigen::Vector3f s = pose.scale.cast<float>();
-  const Eigen::Matrix3f rs = r * s.asDiagonal();
+// The object's points in its own frame with each point drawn as k x k
+// samples over its frame-0 pixel footprint (k = 1: the points themselves).
+PointCloud FootprintSamples(const DynamicObject& object, int k) {
   const PointCloud& src = object.points_in_object;
   const size_t n = src.size();
-  const bool colors = (out->HasColors() || out->empty()) && src.HasColors();
-  const int k =
-      object.footprint_u.size() == n ? std::max(1, pose.subsamples) : 1;
+  if (k <= 1 || object.footprint_u.size() != n) return src;
   const size_t kk = static_cast<size_t>(k) * k;
-  // Grow once, then write through raw pointers (no per-point push_back).
-  const size_t base = out->positions.size();
-  out->positions.resize(base + n * kk);
-  if (colors) out->colors.resize(base + n * kk);
-  out->instance_ids.resize(base + n * kk, object.render_id);
-  Eigen::Vector3f* pos = out->positions.data() + base;
-  if (k == 1) {
-    for (size_t i = 0; i < n; ++i) pos[i] = rs * src.positions[i] + t;
-    if (colors)
-      std::copy(src.colors.begin(), src.colors.end(),
-                out->colors.begin() + base);
-    return;
-  }
-  // k x k samples over each point's frame-0 pixel footprint.
   float offsets[16];
   for (int a = 0; a < k; ++a) offsets[a] = (a + 0.5f) / k - 0.5f;
+  PointCloud out;
+  out.positions.resize(n * kk);
+  if (src.HasColors()) out.colors.resize(n * kk);
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f p = rs * src.positions[i] + t;
-    const Eigen::Vector3f du = rs * object.footprint_u[i];
-    const Eigen::Vector3f dv = rs * object.footprint_v[i];
-    Eigen::Vector3f* o = pos + i * kk;
+    Eigen::Vector3f* o = out.positions.data() + i * kk;
     for (int b = 0; b < k; ++b) {
-      const Eigen::Vector3f row = p + offsets[b] * dv;
-      for (int a = 0; a < k; ++a) *o++ = row + offsets[a] * du;
+      const Eigen::Vector3f row =
+          src.positions[i] + offsets[b] * object.footprint_v[i];
+      for (int a = 0; a < k; ++a)
+        *o++ = row + offsets[a] * object.footprint_u[i];
     }
-    if (colors)
-      std::fill_n(out->colors.begin() + base + i * kk, kk, src.colors[i]);
+    if (src.HasColors())
+      std::fill_n(out.colors.begin() + i * kk, kk, src.colors[i]);
   }
+  return out;
+}
+
+// world_from_object with the object's scale: x_world = R (s .* x) + t.
+Matrix3x4d AffineOf(const ObjectPose& pose) {
+  Matrix3x4d a;
+  a.leftCols<3>() =
+      pose.world_from_object.rotation.normalized().toRotationMatrix() *
+      pose.scale.asDiagonal();
+  a.col(3) = pose.world_from_object.translation;
+  return a;
+}
+
+// The scene's objects as moving point sets: one set per object and footprint
+// sampling k it uses, in object order (so depth ties keep object order).
+std::vector<MovingPointSet> MovingSets(const DynamicScene& scene) {
+  std::vector<MovingPointSet> sets;
+  for (const DynamicObject& object : scene.objects) {
+    std::set<int> ks;
+    for (const std::optional<ObjectPose>& pose : object.poses)
+      if (pose) ks.insert(std::max(1, pose->subsamples));
+    for (int k : ks) {
+      MovingPointSet set;
+      set.points = FootprintSamples(object, k);
+      set.instance_id = object.render_id;
+      set.world_from_set.resize(scene.num_frames);
+      for (size_t f = 0;
+           f < object.poses.size() && f < static_cast<size_t>(scene.num_frames);
+           ++f) {
+        const std::optional<ObjectPose>& pose = object.poses[f];
+        if (pose && std::max(1, pose->subsamples) == k)
+          set.world_from_set[f] = AffineOf(*pose);
+      }
+      sets.push_back(std::move(set));
+    }
+  }
+  return sets;
 }
 
 // Sets ObjectPose::subsamples from the object's magnification in each frame.
@@ -511,12 +529,25 @@ void SetSubsamples(const std::vector<PinholeCamera>& cameras,
   }
 }
 
-// Appends the objects drawn in `frame` to `out` (which already holds the
-// background).
+// Appends the objects drawn in `frame`, mapped to the world, to `out` (which
+// already holds the background).
 void AppendObjects(const DynamicScene& scene, int frame, PointCloud* out) {
   for (const DynamicObject& object : scene.objects) {
-    if (frame < static_cast<int>(object.poses.size()) && object.poses[frame])
-      TransformInto(object, *object.poses[frame], out);
+    if (frame >= static_cast<int>(object.poses.size()) || !object.poses[frame])
+      continue;
+    const ObjectPose& pose = *object.poses[frame];
+    const PointCloud samples = FootprintSamples(object, pose.subsamples);
+    const Matrix3x4d a = AffineOf(pose);
+    const Eigen::Matrix3f linear = a.leftCols<3>().cast<float>();
+    const Eigen::Vector3f t = a.col(3).cast<float>();
+    const bool colors = out->HasColors() || out->empty();
+    for (const Eigen::Vector3f& p : samples.positions)
+      out->positions.push_back(linear * p + t);
+    if (colors && samples.HasColors())
+      out->colors.insert(out->colors.end(), samples.colors.begin(),
+                         samples.colors.end());
+    out->instance_ids.insert(out->instance_ids.end(), samples.size(),
+                             object.render_id);
   }
 }
 
@@ -600,49 +631,61 @@ struct FastBox {
   }
 };
 
-// Point positions as structure of arrays, for loops that vectorise.
-struct PositionsSoA {
-  std::vector<float> x, y, z;
-  explicit PositionsSoA(const std::vector<Eigen::Vector3f>& positions) {
-    const size_t n = positions.size();
-    x.resize(n);
-    y.resize(n);
-    z.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-      x[i] = positions[i].x();
-      y[i] = positions[i].y();
-      z[i] = positions[i].z();
+// For each box, the indices (ascending) of the points inside it. One pass
+// over the points: a coarse grid over the boxes' bounding region (x, y) holds
+// per cell a bit mask of the boxes whose bounding cube overlaps it, so a point
+// far from every box costs a few compares and only points in marked cells get
+// the exact tests. Boxes are taken 64 at a time (one mask bit each).
+std::vector<std::vector<size_t>> PointsInBoxes(
+    const std::vector<Eigen::Vector3f>& positions,
+    const std::vector<FastBox>& boxes) {
+  std::vector<std::vector<size_t>> inside(boxes.size());
+  constexpr int kGrid = 64;
+  for (size_t first = 0; first < boxes.size(); first += 64) {
+    const size_t last = std::min(boxes.size(), first + 64);
+    // Bounding cube of each box (centre +- bounding-sphere radius), and their
+    // union.
+    std::vector<Eigen::Vector3f> lo(last - first), hi(last - first);
+    Eigen::Vector3f ulo = Eigen::Vector3f::Constant(
+                        std::numeric_limits<float>::infinity()),
+                    uhi = -ulo;
+    for (size_t k = first; k < last; ++k) {
+      const float r = std::sqrt(boxes[k].radius2) * 1.0001f + 1e-6f;
+      lo[k - first] = boxes[k].center.array() - r;
+      hi[k - first] = boxes[k].center.array() + r;
+      ulo = ulo.cwiseMin(lo[k - first]);
+      uhi = uhi.cwiseMax(hi[k - first]);
     }
-  }
-};
-
-// Indices (ascending) of the points inside `box`: a bounding-sphere pass over
-// all points that vectorises, then the exact test on the few that pass.
-std::vector<size_t> PointsInBox(const std::vector<Eigen::Vector3f>& positions,
-                                const PositionsSoA& soa,
-                                const FastBox& box,
-                                std::vector<uint8_t>* near_scratch) {
-  const size_t n = positions.size();
-  std::vector<uint8_t>& near = *near_scratch;
-  near.assign(n + 8, 0);  // padded so the scan below reads whole words
-  const float* __restrict px = soa.x.data();
-  const float* __restrict py = soa.y.data();
-  const float* __restrict pz = soa.z.data();
-  uint8_t* __restrict out = near.data();
-  const float cx = box.center.x(), cy = box.center.y(), cz = box.center.z();
-  const float r2 = box.radius2;
-  for (size_t i = 0; i < n; ++i) {
-    const float dx = px[i] - cx, dy = py[i] - cy, dz = pz[i] - cz;
-    out[i] = static_cast<uint8_t>(SignBit(r2 - (dx * dx + dy * dy + dz * dz)) ^
-                                  1u);  // d^2 <= r2
-  }
-  std::vector<size_t> inside;
-  for (size_t w = 0; w < n; w += 8) {
-    uint64_t word;
-    std::memcpy(&word, out + w, 8);
-    if (word == 0) continue;
-    for (size_t i = w; i < std::min(n, w + 8); ++i)
-      if (out[i] && box.Contains(positions[i])) inside.push_back(i);
+    // Cell of a coordinate; monotonic in it, so a point inside a cube falls
+    // in one of the cube's cells.
+    const float sx = kGrid / std::max(uhi.x() - ulo.x(), 1e-6f);
+    const float sy = kGrid / std::max(uhi.y() - ulo.y(), 1e-6f);
+    auto cell = [](float c, float origin, float scale) {
+      return std::clamp(static_cast<int>((c - origin) * scale), 0, kGrid - 1);
+    };
+    std::vector<uint64_t> mask(kGrid * kGrid, 0);
+    for (size_t k = first; k < last; ++k) {
+      const size_t j = k - first;
+      const int x0 = cell(lo[j].x(), ulo.x(), sx),
+                x1 = cell(hi[j].x(), ulo.x(), sx);
+      const int y0 = cell(lo[j].y(), ulo.y(), sy),
+                y1 = cell(hi[j].y(), ulo.y(), sy);
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) mask[y * kGrid + x] |= uint64_t{1} << j;
+    }
+    for (size_t i = 0; i < positions.size(); ++i) {
+      const Eigen::Vector3f& p = positions[i];
+      if (!(p.x() >= ulo.x() && p.x() <= uhi.x() && p.y() >= ulo.y() &&
+            p.y() <= uhi.y() && p.z() >= ulo.z() && p.z() <= uhi.z()))
+        continue;
+      uint64_t m =
+          mask[cell(p.y(), ulo.y(), sy) * kGrid + cell(p.x(), ulo.x(), sx)];
+      while (m) {
+        const int j = __builtin_ctzll(m);
+        m &= m - 1;
+        if (boxes[first + j].Contains(p)) inside[first + j].push_back(i);
+      }
+    }
   }
   return inside;
 }
@@ -847,10 +890,18 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
   }
   summary->ground_plane = plane;
 
-  // Segment every instance in frame 0.
+  // Segment every instance in frame 0. Points inside the frame-0 3D boxes,
+  // all boxes in one pass.
+  std::vector<FastBox> fast_boxes;
+  std::vector<int> fast_box_of(boxes.instances.size(), -1);
+  for (size_t k = 0; k < boxes.instances.size(); ++k) {
+    if (!tracks[k].box_3d[0]) continue;
+    fast_box_of[k] = static_cast<int>(fast_boxes.size());
+    fast_boxes.emplace_back(*tracks[k].box_3d[0], options.box_margin);
+  }
+  const std::vector<std::vector<size_t>> in_box =
+      PointsInBoxes(cloud_in_world.positions, fast_boxes);
   std::vector<char> taken(n, 0);
-  std::vector<uint8_t> near_scratch;
-  std::optional<PositionsSoA> soa;  // built for the first 3D box
   std::vector<std::optional<Segment>> segments(boxes.instances.size());
   for (size_t k = 0; k < boxes.instances.size(); ++k) {
     const BoxSequence& s = boxes.instances[k];
@@ -868,10 +919,7 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     };
     if (t.box_3d[0]) {
       seg.box0 = *t.box_3d[0];
-      const FastBox fast(*seg.box0, options.box_margin);
-      if (!soa) soa.emplace(cloud_in_world.positions);
-      for (size_t i :
-           PointsInBox(cloud_in_world.positions, *soa, fast, &near_scratch)) {
+      for (size_t i : in_box[fast_box_of[k]]) {
         if (!taken[i] && above_ground(i)) seg.indices.push_back(i);
       }
     } else {
@@ -1376,14 +1424,13 @@ DynamicEditResult RenderWithDynamicEdits(
                                              : (render_options.num_threads > 0
                                                     ? render_options.num_threads
                                                     : omp_get_max_threads());
-    // One depth test per frame over the background (packed once per clip)
-    // and that frame's moved objects, so objects and background occlude each
-    // other correctly.
+    // One depth test per frame over the background and that frame's moved
+    // objects, so objects and background occlude each other correctly. Each
+    // object is packed once in its own frame (once per footprint sampling k
+    // it uses) and only projected per frame.
     RenderResult rendered;
-    RenderFramesWithDynamicPoints(
-        scene.background,
-        [&scene](int f, PointCloud* out) { AppendObjects(scene, f, out); },
-        cameras, cam_from_world, ro, &rendered);
+    RenderFramesWithMovingSets(scene.background, MovingSets(scene), cameras,
+                               cam_from_world, ro, &rendered);
     result.frames = std::move(rendered.frames);
   }
   result.summary.seconds =

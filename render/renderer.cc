@@ -32,12 +32,21 @@ struct FrameProjector {
 
   FrameProjector(const PinholeCamera& camera,
                  const Rigid3d& cam_from_world,
+                 const RenderOptions& options)
+      : FrameProjector(camera,
+                       cam_from_world.rotation.normalized().toRotationMatrix(),
+                       cam_from_world.translation,
+                       options) {}
+  // x_cam = linear * x + translation (a rotation, or a rotation times a scale
+  // for moving point sets).
+  FrameProjector(const PinholeCamera& camera,
+                 const Eigen::Matrix3d& linear,
+                 const Eigen::Vector3d& translation,
                  const RenderOptions& options) {
-    const Eigen::Matrix3d rot =
-        cam_from_world.rotation.normalized().toRotationMatrix();
     for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) r[3 * i + j] = static_cast<float>(rot(i, j));
-      t[i] = static_cast<float>(cam_from_world.translation[i]);
+      for (int j = 0; j < 3; ++j)
+        r[3 * i + j] = static_cast<float>(linear(i, j));
+      t[i] = static_cast<float>(translation[i]);
     }
     const double offset =
         options.pixel_convention == PixelConvention::kPixelCenter ? 0.5 : 0.0;
@@ -49,6 +58,13 @@ struct FrameProjector {
     far = static_cast<float>(
         std::min<double>(options.far, std::numeric_limits<float>::max()));
   }
+};
+
+// A run of packed points [begin, end) seen through one projector: the static
+// cloud through the camera, a moving set through camera * world_from_set.
+struct ProjectedRange {
+  int begin = 0, end = 0;
+  FrameProjector proj;
 };
 
 // Points are projected in blocks into small arrays (a loop the compiler
@@ -94,8 +110,7 @@ const Color3u8 kDefaultColor(200, 200, 200);
 
 // The cloud as the kernels read it: positions as structure of arrays, colours
 // in the form the mode needs, instance ids when asked for. Built once per
-// RenderFramesInto call, or once per thread plus a per-frame tail of dynamic
-// points (RenderFramesWithDynamicPoints).
+// RenderFramesInto / RenderFramesWithMovingSets call.
 struct PackedCloud {
   std::vector<float> x, y, z;
   std::vector<uint32_t> rgbx;     // zbuffer: RGBX words + black sentinel at [n]
@@ -485,7 +500,7 @@ int64_t ResolveZBuffer(const ZResolveArgs& a) {
 
 GEODRIVE_HOT_CLONES
 void RenderZBuffer(const PackedCloud& soa,
-                   const FrameProjector& proj,
+                   const std::vector<ProjectedRange>& ranges,
                    const RenderOptions& options,
                    Scratch* scratch,
                    RenderedFrame* frame) {
@@ -503,34 +518,36 @@ void RenderZBuffer(const PackedCloud& soa,
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   int64_t projected = 0;
   const float r = static_cast<float>(options.radius_px);
-  for (int base = 0; base < n; base += kBlock) {
-    const int m = std::min(kBlock, n - base);
-    ProjectBlock(soa, base, m, proj, &blk);
-    if (r <= 0) {
-      // Pixel (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5) in shifted
-      // coordinates.
-      for (int k = 0; k < m; ++k) {
-        // 0 <= fu < W and 0 <= fv < H from sign bits (vectorises; see
-        // ProjectBlock).
-        const float fu = blk.u[k] + 0.5f, fv = blk.v[k] + 0.5f;
-        const int32_t in =
-            blk.ok[k] &
-            static_cast<int32_t>((SignBit(fu) ^ 1u) & SignBit(fu - fw) &
-                                 (SignBit(fv) ^ 1u) & SignBit(fv - fh));
-        const float su = in ? fu : 0.0f, sv = in ? fv : 0.0f;
-        const int32_t pix =
-            static_cast<int32_t>(sv) * w + static_cast<int32_t>(su);
-        blk.ok[k] = in ? pix : static_cast<int32_t>(npix);
-        projected += in;
+  for (const ProjectedRange& range : ranges) {
+    for (int base = range.begin; base < range.end; base += kBlock) {
+      const int m = std::min(kBlock, range.end - base);
+      ProjectBlock(soa, base, m, range.proj, &blk);
+      if (r <= 0) {
+        // Pixel (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5) in
+        // shifted coordinates.
+        for (int k = 0; k < m; ++k) {
+          // 0 <= fu < W and 0 <= fv < H from sign bits (vectorises; see
+          // ProjectBlock).
+          const float fu = blk.u[k] + 0.5f, fv = blk.v[k] + 0.5f;
+          const int32_t in =
+              blk.ok[k] &
+              static_cast<int32_t>((SignBit(fu) ^ 1u) & SignBit(fu - fw) &
+                                   (SignBit(fv) ^ 1u) & SignBit(fv - fh));
+          const float su = in ? fu : 0.0f, sv = in ? fv : 0.0f;
+          const int32_t pix =
+              static_cast<int32_t>(sv) * w + static_cast<int32_t>(su);
+          blk.ok[k] = in ? pix : static_cast<int32_t>(npix);
+          projected += in;
+        }
+        for (int k = 0; k < m; ++k) {
+          uint64_t* slot = kb + blk.ok[k];
+          const uint64_t key = PackKey(blk.z[k], base + k);
+          if (key < *slot) *slot = key;
+        }
+        continue;
       }
-      for (int k = 0; k < m; ++k) {
-        uint64_t* slot = kb + blk.ok[k];
-        const uint64_t key = PackKey(blk.z[k], base + k);
-        if (key < *slot) *slot = key;
-      }
-      continue;
+      projected += SplatDisks(blk, m, base, r, w, h, kb);
     }
-    projected += SplatDisks(blk, m, base, r, w, h, kb);
   }
   frame->num_projected = projected;
 
@@ -751,7 +768,7 @@ int64_t SoftSplat(const SoftSplatArgs& a) {
 // projected (u, v).
 GEODRIVE_HOT_CLONES
 void RenderSoft(const PackedCloud& soa,
-                const FrameProjector& proj,
+                const std::vector<ProjectedRange>& ranges,
                 const RenderOptions& options,
                 Scratch* scratch,
                 RenderedFrame* frame) {
@@ -781,19 +798,21 @@ void RenderSoft(const PackedCloud& soa,
   std::vector<uint32_t>& zbits = scratch->zbits;
   cand.clear();
   zbits.clear();
-  for (int base = 0; base < n; base += kBlock) {
-    const int m = std::min(kBlock, n - base);
-    ProjectBlock(soa, base, m, proj, &blk);
-    std::memcpy(pu + base, blk.u, m * sizeof(float));
-    std::memcpy(pv + base, blk.v, m * sizeof(float));
-    std::memcpy(pz + base, blk.z, m * sizeof(float));
-    for (int k = 0; k < m; ++k) {
-      if (!blk.ok[k]) continue;
-      const float u = blk.u[k], v = blk.v[k];
-      if (!(u > -r_px - 1 && u < fw + r_px && v > -r_px - 1 && v < fh + r_px))
-        continue;
-      cand.push_back(base + k);
-      zbits.push_back(FloatBits(blk.z[k]));
+  for (const ProjectedRange& range : ranges) {
+    for (int base = range.begin; base < range.end; base += kBlock) {
+      const int m = std::min(kBlock, range.end - base);
+      ProjectBlock(soa, base, m, range.proj, &blk);
+      std::memcpy(pu + base, blk.u, m * sizeof(float));
+      std::memcpy(pv + base, blk.v, m * sizeof(float));
+      std::memcpy(pz + base, blk.z, m * sizeof(float));
+      for (int k = 0; k < m; ++k) {
+        if (!blk.ok[k]) continue;
+        const float u = blk.u[k], v = blk.v[k];
+        if (!(u > -r_px - 1 && u < fw + r_px && v > -r_px - 1 && v < fh + r_px))
+          continue;
+        cand.push_back(base + k);
+        zbits.push_back(FloatBits(blk.z[k]));
+      }
     }
   }
   // Pass 2: stable radix sort by z bits (16 + 15 bits: z > 0, so bit 31 is
@@ -890,15 +909,13 @@ PinholeCamera FrameCamera(const PinholeCamera& camera,
 }
 
 void RenderOne(const PackedCloud& cloud,
-               const PinholeCamera& camera,
-               const Rigid3d& cam_from_world,
+               const std::vector<ProjectedRange>& ranges,
                const RenderOptions& options,
                Scratch* scratch,
                RenderedFrame* frame) {
-  const FrameProjector proj(camera, cam_from_world, options);
   AllocateOutputs(options, frame);
   if (options.mode == RenderMode::kZBuffer) {
-    RenderZBuffer(cloud, proj, options, scratch, frame);
+    RenderZBuffer(cloud, ranges, options, scratch, frame);
     if (options.hole_fill) {
       for (int it = 0; it < options.hole_fill_iterations; ++it) {
         const int64_t filled = HoleFillPass(options, &scratch->index, frame);
@@ -909,7 +926,7 @@ void RenderOne(const PackedCloud& cloud,
     if (options.output_float_rgb)
       frame->rgb.convertTo(frame->rgb_float, CV_32FC3, 1.0 / 255);
   } else {
-    RenderSoft(cloud, proj, options, scratch, frame);
+    RenderSoft(cloud, ranges, options, scratch, frame);
   }
   WriteIndexOutputs(cloud, options, scratch->index, frame);
 }
@@ -1088,65 +1105,93 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
     // threads), so rendering many clips does not pay for fresh allocations and
     // page faults every time.
     thread_local Scratch scratch;
+    std::vector<ProjectedRange> ranges;
 #pragma omp for schedule(dynamic, 1)
     for (int f = 0; f < num_frames; ++f) {
-      RenderOne(packed, frame_cameras[f], cam_from_world[f], options, &scratch,
-                &result.frames[f]);
+      ranges.assign(
+          1, ProjectedRange{
+                 0, static_cast<int>(packed.size()),
+                 FrameProjector(frame_cameras[f], cam_from_world[f], options)});
+      RenderOne(packed, ranges, options, &scratch, &result.frames[f]);
     }
   }
   Summarise(static_cast<int64_t>(cloud_in_world.size()), start, &result);
 }
 
-void RenderFramesWithDynamicPoints(const PointCloud& static_cloud,
-                                   const DynamicPointsFn& dynamic_points,
-                                   const std::vector<PinholeCamera>& cameras,
-                                   const std::vector<Rigid3d>& cam_from_world,
-                                   const RenderOptions& options,
-                                   RenderResult* result_out) {
+void RenderFramesWithMovingSets(const PointCloud& static_cloud,
+                                const std::vector<MovingPointSet>& sets,
+                                const std::vector<PinholeCamera>& cameras,
+                                const std::vector<Rigid3d>& cam_from_world,
+                                const RenderOptions& options,
+                                RenderResult* result_out) {
   const auto start = std::chrono::steady_clock::now();
   const std::vector<PinholeCamera> frame_cameras =
       CheckFrames(cameras, cam_from_world, options);
-  GEODRIVE_CHECK_INPUT(static_cloud.size() < (1ull << 30),
-                       "render: the static cloud has ", static_cloud.size(),
-                       " points (at most 2^30 supported)");
-  static_cloud.Check("render: static point cloud");
   const int num_frames = static_cast<int>(cam_from_world.size());
-  const size_t num_static = static_cloud.size();
+  static_cloud.Check("render: static point cloud");
+  size_t total = static_cloud.size();
+  for (size_t k = 0; k < sets.size(); ++k) {
+    const MovingPointSet& set = sets[k];
+    const std::string what = "render: moving point set " + std::to_string(k);
+    set.points.Check(what);
+    GEODRIVE_CHECK_INPUT(
+        set.world_from_set.size() == static_cast<size_t>(num_frames), what,
+        " has ", set.world_from_set.size(), " poses for ", num_frames,
+        " frames");
+    for (int f = 0; f < num_frames; ++f) {
+      if (set.world_from_set[f]) {
+        GEODRIVE_CHECK_INPUT(set.world_from_set[f]->allFinite(), what,
+                             ": frame ", f, " transform has NaN or Inf");
+      }
+    }
+    total += set.points.size();
+  }
+  GEODRIVE_CHECK_INPUT(total < (1ull << 31), "render: ", total,
+                       " static and moving points (at most 2^31 - 1 "
+                       "supported)");
+  // Packed once: static points, then each set's points in its own frame.
+  PackedCloud packed;
+  packed.Assign(0, static_cloud, options);
+  std::vector<int> offsets(sets.size());
+  for (size_t k = 0; k < sets.size(); ++k) {
+    offsets[k] = static_cast<int>(packed.size());
+    packed.Assign(offsets[k], sets[k].points, options);
+    if (options.output_instance) {
+      std::fill(packed.instance.begin() + offsets[k],
+                packed.instance.begin() + offsets[k] + sets[k].points.size(),
+                sets[k].instance_id);
+    }
+  }
   RenderResult& result = *result_out;
   result.frames.resize(num_frames);
   const int threads =
       options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
-  std::exception_ptr error;
 #pragma omp parallel num_threads(std::min(threads, num_frames))
   {
     thread_local Scratch scratch;
-    // This thread's packed static cloud (its buffers persist across calls);
-    // each frame replaces the dynamic tail after it.
-    thread_local PackedCloud packed;
-    thread_local PointCloud dynamic;
-    packed.Assign(0, static_cloud, options);
+    std::vector<ProjectedRange> ranges;
 #pragma omp for schedule(dynamic, 1)
     for (int f = 0; f < num_frames; ++f) {
-      try {
-        dynamic.positions.clear();
-        dynamic.colors.clear();
-        dynamic.instance_ids.clear();
-        dynamic_points(f, &dynamic);
-        dynamic.Check("render: dynamic points of frame " + std::to_string(f));
-        GEODRIVE_CHECK_INPUT(dynamic.size() < (1ull << 30), "render: frame ", f,
-                             " has ", dynamic.size(),
-                             " dynamic points (at most 2^30 supported)");
-        packed.Assign(num_static, dynamic, options);
-        RenderOne(packed, frame_cameras[f], cam_from_world[f], options,
-                  &scratch, &result.frames[f]);
-      } catch (...) {
-#pragma omp critical(geodrive_render_dynamic_error)
-        if (!error) error = std::current_exception();
+      const Eigen::Matrix3d cam_r =
+          cam_from_world[f].rotation.normalized().toRotationMatrix();
+      const Eigen::Vector3d& cam_t = cam_from_world[f].translation;
+      ranges.clear();
+      ranges.push_back(ProjectedRange{
+          0, static_cast<int>(static_cloud.size()),
+          FrameProjector(frame_cameras[f], cam_r, cam_t, options)});
+      for (size_t k = 0; k < sets.size(); ++k) {
+        const std::optional<Matrix3x4d>& a = sets[k].world_from_set[f];
+        if (!a || sets[k].points.empty()) continue;
+        // cam_from_set = cam_from_world * world_from_set.
+        ranges.push_back(ProjectedRange{
+            offsets[k], offsets[k] + static_cast<int>(sets[k].points.size()),
+            FrameProjector(frame_cameras[f], cam_r * a->leftCols<3>(),
+                           cam_r * a->col(3) + cam_t, options)});
       }
+      RenderOne(packed, ranges, options, &scratch, &result.frames[f]);
     }
   }
-  if (error) std::rethrow_exception(error);
-  Summarise(static_cast<int64_t>(num_static), start, &result);
+  Summarise(static_cast<int64_t>(total), start, &result);
 }
 
 }  // namespace geodrive

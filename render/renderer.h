@@ -36,8 +36,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
-#include <functional>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -154,22 +154,31 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
                       const RenderOptions& options,
                       RenderResult* result);
 
-// Produces the dynamic points of one frame (cleared before each call). Called
-// once per frame, possibly from several threads at once.
-using DynamicPointsFn = std::function<void(int frame, PointCloud* points)>;
+// A point set that moves rigidly (or with a per-axis scale) from frame to
+// frame, e.g. a vehicle: its points in its own frame and, per frame, the
+// affine map world_from_set = [A | t] (x_world = A x_set + t); nullopt = not
+// drawn in that frame.
+struct MovingPointSet {
+  PointCloud points;         // in the set's frame (instance_ids ignored)
+  int32_t instance_id = -1;  // written to the instance output for its points
+  std::vector<std::optional<Matrix3x4d>> world_from_set;  // one per frame
+};
 
-// Renders a static cloud plus, in each frame, the points `dynamic_points`
-// produces for it, in one depth test per frame. Point indices (output_index)
-// are the static points first (0..S-1), then the frame's dynamic points (S..):
-// the result equals RenderFramesInto on the concatenated cloud. The static
-// cloud is validated and packed once per call (not once per frame); the static
-// cloud may be empty. Errors thrown by `dynamic_points` are re-thrown.
-void RenderFramesWithDynamicPoints(const PointCloud& static_cloud,
-                                   const DynamicPointsFn& dynamic_points,
-                                   const std::vector<PinholeCamera>& cameras,
-                                   const std::vector<Rigid3d>& cam_from_world,
-                                   const RenderOptions& options,
-                                   RenderResult* result);
+// Renders a static cloud plus moving point sets, in one depth test per frame:
+// the result equals rendering, per frame, the static cloud concatenated with
+// every drawn set mapped to the world (up to the float rounding of the composed
+// transform; with identity transforms the bytes are the same). Point indices
+// (output_index): static points 0..S-1, then the sets' points in order (set k
+// starts after all points of sets 0..k-1, drawn or not), so depth ties go to
+// static points, then to earlier sets. Everything is validated and packed once
+// per call; per frame a set costs only the projection of its points. The
+// static cloud may be empty. Throws InputError on bad input.
+void RenderFramesWithMovingSets(const PointCloud& static_cloud,
+                                const std::vector<MovingPointSet>& sets,
+                                const std::vector<PinholeCamera>& cameras,
+                                const std::vector<Rigid3d>& cam_from_world,
+                                const RenderOptions& options,
+                                RenderResult* result);
 
 // Testing hook: enables or disables the AVX2 splat kernels (on by default
 // where the CPU has AVX2). Both paths give byte-identical output; returns the
