@@ -103,7 +103,7 @@ void BM_BuildScene3d(benchmark::State& state) {
         if (pose)
           drawn +=
               o.points_in_object.size() * pose->subsamples * pose->subsamples;
-    background = d.background.size();
+    background = d.NumBackgroundPoints(scene.cloud);
   }
   // Points drawn per frame on average: background + moved object samples.
   state.counters["background"] = static_cast<double>(background);

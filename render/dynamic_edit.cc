@@ -638,7 +638,8 @@ struct FastBox {
 // the exact tests. Boxes are taken 64 at a time (one mask bit each).
 std::vector<std::vector<size_t>> PointsInBoxes(
     const std::vector<Eigen::Vector3f>& positions,
-    const std::vector<FastBox>& boxes) {
+    const std::vector<FastBox>& boxes,
+    int num_threads) {
   std::vector<std::vector<size_t>> inside(boxes.size());
   constexpr int kGrid = 64;
   for (size_t first = 0; first < boxes.size(); first += 64) {
@@ -673,19 +674,34 @@ std::vector<std::vector<size_t>> PointsInBoxes(
       for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x) mask[y * kGrid + x] |= uint64_t{1} << j;
     }
-    for (size_t i = 0; i < positions.size(); ++i) {
-      const Eigen::Vector3f& p = positions[i];
-      if (!(p.x() >= ulo.x() && p.x() <= uhi.x() && p.y() >= ulo.y() &&
-            p.y() <= uhi.y() && p.z() >= ulo.z() && p.z() <= uhi.z()))
-        continue;
-      uint64_t m =
-          mask[cell(p.y(), ulo.y(), sy) * kGrid + cell(p.x(), ulo.x(), sx)];
-      while (m) {
-        const int j = __builtin_ctzll(m);
-        m &= m - 1;
-        if (boxes[first + j].Contains(p)) inside[first + j].push_back(i);
+    // Contiguous chunks of points per thread, merged in chunk order (so the
+    // lists stay ascending whatever the thread count).
+    const size_t n = positions.size();
+    const int chunks = static_cast<int>(
+        std::clamp<size_t>(n / 32768, 1, std::max(1, num_threads)));
+    std::vector<std::vector<std::vector<size_t>>> found(
+        chunks, std::vector<std::vector<size_t>>(last - first));
+#pragma omp parallel for num_threads(chunks) schedule(static, 1)
+    for (int c = 0; c < chunks; ++c) {
+      const size_t begin = n * c / chunks, end = n * (c + 1) / chunks;
+      for (size_t i = begin; i < end; ++i) {
+        const Eigen::Vector3f& p = positions[i];
+        if (!(p.x() >= ulo.x() && p.x() <= uhi.x() && p.y() >= ulo.y() &&
+              p.y() <= uhi.y() && p.z() >= ulo.z() && p.z() <= uhi.z()))
+          continue;
+        uint64_t m =
+            mask[cell(p.y(), ulo.y(), sy) * kGrid + cell(p.x(), ulo.x(), sx)];
+        while (m) {
+          const int j = __builtin_ctzll(m);
+          m &= m - 1;
+          if (boxes[first + j].Contains(p)) found[c][j].push_back(i);
+        }
       }
     }
+    for (size_t j = 0; j < last - first; ++j)
+      for (int c = 0; c < chunks; ++c)
+        inside[first + j].insert(inside[first + j].end(), found[c][j].begin(),
+                                 found[c][j].end());
   }
   return inside;
 }
@@ -806,17 +822,21 @@ std::string DynamicEditSummary::ToJson() const {
   return j.dump();
 }
 
-void DynamicScene::ComposeFrame(int frame, PointCloud* out) const {
-  *out = PointCloud();
-  out->positions = background.positions;
-  out->colors = background.colors;
-  out->instance_ids.assign(background.size(), -1);
-  AppendObjects(*this, frame, out);
-}
-
-PointCloud DynamicScene::ComposeFrame(int frame) const {
+PointCloud DynamicScene::ComposeFrame(const PointCloud& cloud_in_world,
+                                      int frame) const {
   PointCloud out;
-  ComposeFrame(frame, &out);
+  const bool colors = cloud_in_world.HasColors();
+  size_t h = 0;
+  for (size_t i = 0; i < cloud_in_world.size(); ++i) {
+    if (h < hidden.size() && hidden[h] == i) {
+      ++h;
+      continue;
+    }
+    out.positions.push_back(cloud_in_world.positions[i]);
+    if (colors) out.colors.push_back(cloud_in_world.colors[i]);
+  }
+  out.instance_ids.assign(out.size(), -1);
+  AppendObjects(*this, frame, &out);
   return out;
 }
 
@@ -899,8 +919,9 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     fast_box_of[k] = static_cast<int>(fast_boxes.size());
     fast_boxes.emplace_back(*tracks[k].box_3d[0], options.box_margin);
   }
-  const std::vector<std::vector<size_t>> in_box =
-      PointsInBoxes(cloud_in_world.positions, fast_boxes);
+  const std::vector<std::vector<size_t>> in_box = PointsInBoxes(
+      cloud_in_world.positions, fast_boxes,
+      options.num_threads > 0 ? options.num_threads : omp_get_max_threads());
   std::vector<char> taken(n, 0);
   std::vector<std::optional<Segment>> segments(boxes.instances.size());
   for (size_t k = 0; k < boxes.instances.size(); ++k) {
@@ -1014,23 +1035,9 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     segments[k] = std::move(seg);
   }
 
-  // Background: everything not segmented (positions and colours only).
-  {
-    size_t num_taken = 0;
-    for (size_t i = 0; i < n; ++i) num_taken += taken[i] != 0;
-    const size_t m = n - num_taken;
-    PointCloud& bg = scene.background;
-    bg.positions.resize(m);
-    const bool colors = cloud_in_world.HasColors();
-    if (colors) bg.colors.resize(m);
-    size_t j = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (taken[i]) continue;
-      bg.positions[j] = cloud_in_world.positions[i];
-      if (colors) bg.colors[j] = cloud_in_world.colors[i];
-      ++j;
-    }
-  }
+  // Background: everything not segmented.
+  for (size_t i = 0; i < n; ++i)
+    if (taken[i]) scene.hidden.push_back(i);
 
   auto make_object = [&](const Segment& seg, const std::string& id,
                          const std::string& source) {
@@ -1414,23 +1421,25 @@ DynamicEditResult RenderWithDynamicEdits(
     result = Render2d(cloud_in_world, cameras, cam_from_world, boxes, edits,
                       options, render_options);
   } else {
-    const DynamicScene scene =
-        BuildDynamicScene(cloud_in_world, cameras, cam_from_world, boxes, edits,
-                          options, &result.summary, render_options.width);
-    for (const DynamicObject& o : scene.objects)
-      result.render_ids.push_back(o.id);
     RenderOptions ro = render_options;
     ro.num_threads = options.num_threads > 0 ? options.num_threads
                                              : (render_options.num_threads > 0
                                                     ? render_options.num_threads
                                                     : omp_get_max_threads());
+    DynamicEditOptions build_options = options;
+    build_options.num_threads = ro.num_threads;
+    const DynamicScene scene =
+        BuildDynamicScene(cloud_in_world, cameras, cam_from_world, boxes, edits,
+                          build_options, &result.summary, render_options.width);
+    for (const DynamicObject& o : scene.objects)
+      result.render_ids.push_back(o.id);
     // One depth test per frame over the background and that frame's moved
     // objects, so objects and background occlude each other correctly. Each
     // object is packed once in its own frame (once per footprint sampling k
     // it uses) and only projected per frame.
     RenderResult rendered;
-    RenderFramesWithMovingSets(scene.background, MovingSets(scene), cameras,
-                               cam_from_world, ro, &rendered);
+    RenderFramesWithMovingSets(cloud_in_world, MovingSets(scene), cameras,
+                               cam_from_world, ro, &rendered, scene.hidden);
     result.frames = std::move(rendered.frames);
   }
   result.summary.seconds =

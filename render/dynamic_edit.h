@@ -189,17 +189,22 @@ struct DynamicObject {
       poses;  // per frame; nullopt = not drawn
 };
 
-// The 3D edit before rendering: a static background and objects with per-frame
-// poses.
+// The 3D edit before rendering: the input cloud less the segmented objects'
+// points is the static background; objects have per-frame poses.
 struct DynamicScene {
   int num_frames = 0;
-  PointCloud background;  // positions and colours (no instance ids: -1)
+  // Input-cloud points that are not background (every segmented object's
+  // points: moved, removed or copied), ascending.
+  std::vector<size_t> hidden;
   std::vector<DynamicObject> objects;
 
-  // Background followed by every object drawn in `frame` (instance_ids =
-  // render_id). `out` keeps its capacity between calls.
-  void ComposeFrame(int frame, PointCloud* out) const;
-  PointCloud ComposeFrame(int frame) const;
+  size_t NumBackgroundPoints(const PointCloud& cloud_in_world) const {
+    return cloud_in_world.size() - hidden.size();
+  }
+  // The background (positions and colours of the input cloud's points not in
+  // `hidden`, instance id -1) followed by every object drawn in `frame`
+  // mapped to the world (instance_ids = render_id): the cloud the frame shows.
+  PointCloud ComposeFrame(const PointCloud& cloud_in_world, int frame) const;
 };
 
 // Builds the 3D edit: segmentation, poses, removals and insertions. `cameras`

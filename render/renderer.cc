@@ -119,6 +119,18 @@ struct PackedCloud {
                                   // + sentinel -1 at [n]
   size_t size() const { return x.size(); }
 
+  // Capacity for n points (avoids re-allocating when sets are appended).
+  void Reserve(size_t n, const RenderOptions& options) {
+    x.reserve(n);
+    y.reserve(n);
+    z.reserve(n);
+    if (options.mode == RenderMode::kZBuffer)
+      rgbx.reserve(n + 1);
+    else
+      colors01.reserve(3 * n);
+    if (options.output_instance) instance.reserve(n + 1);
+  }
+
   // Makes points [offset, offset + cloud.size()) the given cloud's, dropping
   // anything after them.
   void Assign(size_t offset,
@@ -1123,12 +1135,29 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
                                 const std::vector<PinholeCamera>& cameras,
                                 const std::vector<Rigid3d>& cam_from_world,
                                 const RenderOptions& options,
-                                RenderResult* result_out) {
+                                RenderResult* result_out,
+                                const std::vector<size_t>& hidden_static) {
   const auto start = std::chrono::steady_clock::now();
   const std::vector<PinholeCamera> frame_cameras =
       CheckFrames(cameras, cam_from_world, options);
   const int num_frames = static_cast<int>(cam_from_world.size());
   static_cloud.Check("render: static point cloud");
+  // The static points drawn, as runs [begin, end) between hidden points.
+  std::vector<std::pair<int, int>> static_runs;
+  {
+    size_t begin = 0;
+    for (size_t k = 0; k < hidden_static.size(); ++k) {
+      const size_t h = hidden_static[k];
+      GEODRIVE_CHECK_INPUT(
+          h < static_cloud.size() && (k == 0 || h > hidden_static[k - 1]),
+          "render: hidden static point ", k, " (", h,
+          ") is out of range or not in ascending order");
+      if (h > begin) static_runs.emplace_back(begin, h);
+      begin = h + 1;
+    }
+    if (static_cloud.size() > begin)
+      static_runs.emplace_back(begin, static_cloud.size());
+  }
   size_t total = static_cloud.size();
   for (size_t k = 0; k < sets.size(); ++k) {
     const MovingPointSet& set = sets[k];
@@ -1151,6 +1180,7 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
                        "supported)");
   // Packed once: static points, then each set's points in its own frame.
   PackedCloud packed;
+  packed.Reserve(total, options);
   packed.Assign(0, static_cloud, options);
   std::vector<int> offsets(sets.size());
   for (size_t k = 0; k < sets.size(); ++k) {
@@ -1176,9 +1206,9 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
           cam_from_world[f].rotation.normalized().toRotationMatrix();
       const Eigen::Vector3d& cam_t = cam_from_world[f].translation;
       ranges.clear();
-      ranges.push_back(ProjectedRange{
-          0, static_cast<int>(static_cloud.size()),
-          FrameProjector(frame_cameras[f], cam_r, cam_t, options)});
+      const FrameProjector camera_proj(frame_cameras[f], cam_r, cam_t, options);
+      for (const std::pair<int, int>& run : static_runs)
+        ranges.push_back(ProjectedRange{run.first, run.second, camera_proj});
       for (size_t k = 0; k < sets.size(); ++k) {
         const std::optional<Matrix3x4d>& a = sets[k].world_from_set[f];
         if (!a || sets[k].points.empty()) continue;
@@ -1191,7 +1221,7 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
       RenderOne(packed, ranges, options, &scratch, &result.frames[f]);
     }
   }
-  Summarise(static_cast<int64_t>(total), start, &result);
+  Summarise(static_cast<int64_t>(total - hidden_static.size()), start, &result);
 }
 
 }  // namespace geodrive

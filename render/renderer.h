@@ -165,20 +165,24 @@ struct MovingPointSet {
 };
 
 // Renders a static cloud plus moving point sets, in one depth test per frame:
-// the result equals rendering, per frame, the static cloud concatenated with
-// every drawn set mapped to the world (up to the float rounding of the composed
-// transform; with identity transforms the bytes are the same). Point indices
-// (output_index): static points 0..S-1, then the sets' points in order (set k
-// starts after all points of sets 0..k-1, drawn or not), so depth ties go to
-// static points, then to earlier sets. Everything is validated and packed once
-// per call; per frame a set costs only the projection of its points. The
-// static cloud may be empty. Throws InputError on bad input.
+// the result equals rendering, per frame, the static cloud (less the points in
+// `hidden_static`) concatenated with every drawn set mapped to the world (up to
+// the float rounding of the composed transform; with identity transforms the
+// bytes are the same). Point indices (output_index): static points keep their
+// index 0..S-1, then come the sets' points in order (set k starts after all
+// points of sets 0..k-1, drawn or not), so depth ties go to static points,
+// then to earlier sets. `hidden_static` (ascending, unique, < S) lists static
+// points left out, e.g. the source points of objects that now move. Everything
+// is validated and packed once per call; per frame a set costs only the
+// projection of its points. The static cloud may be empty. Throws InputError
+// on bad input.
 void RenderFramesWithMovingSets(const PointCloud& static_cloud,
                                 const std::vector<MovingPointSet>& sets,
                                 const std::vector<PinholeCamera>& cameras,
                                 const std::vector<Rigid3d>& cam_from_world,
                                 const RenderOptions& options,
-                                RenderResult* result);
+                                RenderResult* result,
+                                const std::vector<size_t>& hidden_static = {});
 
 // Testing hook: enables or disables the AVX2 splat kernels (on by default
 // where the CPU has AVX2). Both paths give byte-identical output; returns the

@@ -246,7 +246,7 @@ TEST(DynamicEdit, RemovalLeavesNoPointOfTheObject) {
   EXPECT_EQ(summary.removed_points, static_cast<int64_t>(victim_points.size()));
   EXPECT_EQ(dyn.objects.size(), 4u);
   for (int t = 0; t < dyn.num_frames; ++t) {
-    const PointCloud cloud = dyn.ComposeFrame(t);
+    const PointCloud cloud = dyn.ComposeFrame(scene.cloud, t);
     int leaked = 0, in_body = 0;
     for (const Eigen::Vector3f& p : cloud.positions) {
       leaked += victim_points.count({p.x(), p.y(), p.z()});
@@ -317,7 +317,7 @@ TEST(DynamicEdit, InsertAndMovePlaceThePointsInsideTheNewBoxes) {
   EXPECT_EQ(moved.id, scene.vehicles[1].id);
   EXPECT_TRUE(HasNote(summary, scene.vehicles[1].id, "interpolated"));
   for (int t = 0; t < dyn.num_frames; ++t) {
-    const PointCloud cloud = dyn.ComposeFrame(t);
+    const PointCloud cloud = dyn.ComposeFrame(scene.cloud, t);
     // The moved object's box at t: interpolation of the keyframes is exact for
     // this linear path.
     const Box3d move_box = test_scene::YawBox(scene.vehicles[1].size,

@@ -505,16 +505,26 @@ TEST(Renderer, MovingSetsWithIdentityPosesEqualTheConcatenatedCloudExactly) {
   // static one must win, then set 0.
   sets[0].points.positions[5] = static_cloud.positions[10];
   sets[1].points.positions[6] = static_cloud.positions[10];
+  // Hidden static points: runs at the start, in the middle and at the end,
+  // and single points; the reference moves them behind the camera.
+  std::vector<size_t> hidden;
+  for (size_t i = 0; i < static_cloud.size(); ++i)
+    if (i < 3 || (i >= 200 && i < 260) || i % 97 == 5 ||
+        i + 2 >= static_cloud.size())
+      hidden.push_back(i);
   for (RenderMode mode : {RenderMode::kZBuffer, RenderMode::kSoft}) {
     const RenderOptions options = MovingSetOptions(camera, mode);
     RenderResult moving;
     RenderFramesWithMovingSets(static_cloud, sets, {camera}, poses, options,
-                               &moving);
+                               &moving, hidden);
     ASSERT_EQ(moving.frames.size(), poses.size());
     int set_pixels[2] = {0, 0};
     for (size_t f = 0; f < poses.size(); ++f) {
-      const PointCloud all = ConcatenateForFrame(static_cloud, sets, poses[f],
-                                                 static_cast<int>(f));
+      PointCloud all = ConcatenateForFrame(static_cloud, sets, poses[f],
+                                           static_cast<int>(f));
+      for (size_t i : hidden)
+        all.positions[i] =
+            (poses[f].Inverse() * Eigen::Vector3d(0, 0, -10)).cast<float>();
       const RenderedFrame ref = RenderFrame(all, camera, poses[f], options);
       const RenderedFrame& got = moving.frames[f];
       EXPECT_TRUE(SameBytes(ref.rgb, got.rgb)) << ToString(mode) << " " << f;
@@ -631,6 +641,16 @@ TEST(Renderer, MovingSetsBadInputIsAnError) {
   MovingPointSet inf_pose = set;
   (*inf_pose.world_from_set[1])(0, 3) = INFINITY;
   throws_with(inf_pose, "frame 1 transform has NaN or Inf");
+  // Hidden static indices out of order or out of range.
+  const PointCloud static_cloud = RandomOverlappingCloud(20);
+  for (const std::vector<size_t>& hidden :
+       {std::vector<size_t>{3, 2}, std::vector<size_t>{4, 4},
+        std::vector<size_t>{static_cloud.size()}}) {
+    RenderResult r;
+    EXPECT_THROW(RenderFramesWithMovingSets(static_cloud, {set}, {camera},
+                                            poses, options, &r, hidden),
+                 InputError);
+  }
 }
 
 // ---- Camera resizing to the output size ----
