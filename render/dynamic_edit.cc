@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <functional>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -471,17 +472,19 @@ Matrix3x4d AffineOf(const ObjectPose& pose) {
   return a;
 }
 
-// The scene's objects as moving point sets: one set per object and footprint
-// sampling k it uses, in object order (so depth ties keep object order).
-std::vector<MovingPointSet> MovingSets(const DynamicScene& scene) {
+// The scene's objects as moving point sets (their points are moved out): one
+// set per object and footprint sampling k it uses, in object order (so depth
+// ties keep object order; an object never shows two k in one frame).
+std::vector<MovingPointSet> MovingSets(DynamicScene&& scene) {
   std::vector<MovingPointSet> sets;
-  for (const DynamicObject& object : scene.objects) {
-    std::set<int> ks;
+  for (DynamicObject& object : scene.objects) {
+    std::set<int, std::greater<int>> ks;  // k = 1 last: it takes the points
     for (const std::optional<ObjectPose>& pose : object.poses)
       if (pose) ks.insert(std::max(1, pose->subsamples));
     for (int k : ks) {
       MovingPointSet set;
-      set.points = FootprintSamples(object, k);
+      set.points = k == 1 ? std::move(object.points_in_object)
+                          : FootprintSamples(object, k);
       set.instance_id = object.render_id;
       set.world_from_set.resize(scene.num_frames);
       for (size_t f = 0;
@@ -614,6 +617,7 @@ Frame0Projection ProjectFrame0(const PointCloud& cloud,
 struct FastBox {
   Eigen::Matrix3f box_from_world;
   Eigen::Vector3f center, half;
+  Eigen::Vector3f extent;  // half-size of the world-axis-aligned bounding box
   float radius2;
   FastBox(const Box3d& box, double margin) {
     box_from_world =
@@ -621,6 +625,10 @@ struct FastBox {
     center = box.center.cast<float>();
     half = (box.HalfExtents().array() + margin).matrix().cast<float>();
     radius2 = half.squaredNorm() * 1.0001f + 1e-6f;
+    // Row i of world_from_box is column i of box_from_world; padded for the
+    // float rounding of Contains().
+    extent = (box_from_world.transpose().cwiseAbs() * half).array() * 1.0001f +
+             1e-5f;
   }
   bool Contains(const Eigen::Vector3f& p) const {
     const Eigen::Vector3f d = p - center;
@@ -633,7 +641,7 @@ struct FastBox {
 
 // For each box, the indices (ascending) of the points inside it. One pass
 // over the points: a coarse grid over the boxes' bounding region (x, y) holds
-// per cell a bit mask of the boxes whose bounding cube overlaps it, so a point
+// per cell a bit mask of the boxes whose bounding box overlaps it, so a point
 // far from every box costs a few compares and only points in marked cells get
 // the exact tests. Boxes are taken 64 at a time (one mask bit each).
 std::vector<std::vector<size_t>> PointsInBoxes(
@@ -644,21 +652,19 @@ std::vector<std::vector<size_t>> PointsInBoxes(
   constexpr int kGrid = 64;
   for (size_t first = 0; first < boxes.size(); first += 64) {
     const size_t last = std::min(boxes.size(), first + 64);
-    // Bounding cube of each box (centre +- bounding-sphere radius), and their
-    // union.
+    // World-axis-aligned bounding box of each box, and their union.
     std::vector<Eigen::Vector3f> lo(last - first), hi(last - first);
     Eigen::Vector3f ulo = Eigen::Vector3f::Constant(
                         std::numeric_limits<float>::infinity()),
                     uhi = -ulo;
     for (size_t k = first; k < last; ++k) {
-      const float r = std::sqrt(boxes[k].radius2) * 1.0001f + 1e-6f;
-      lo[k - first] = boxes[k].center.array() - r;
-      hi[k - first] = boxes[k].center.array() + r;
+      lo[k - first] = boxes[k].center - boxes[k].extent;
+      hi[k - first] = boxes[k].center + boxes[k].extent;
       ulo = ulo.cwiseMin(lo[k - first]);
       uhi = uhi.cwiseMax(hi[k - first]);
     }
-    // Cell of a coordinate; monotonic in it, so a point inside a cube falls
-    // in one of the cube's cells.
+    // Cell of a coordinate; monotonic in it, so a point inside a bounding box
+    // falls in one of that box's cells.
     const float sx = kGrid / std::max(uhi.x() - ulo.x(), 1e-6f);
     const float sy = kGrid / std::max(uhi.y() - ulo.y(), 1e-6f);
     auto cell = [](float c, float origin, float scale) {
@@ -1048,33 +1054,44 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     object.points_in_object = StripForRender(cloud_in_world, seg.indices);
     const Rigid3d object_from_world =
         seg.box0 ? seg.box0->WorldFromBox().Inverse() : Rigid3d();
-    const Rigid3d world_from_cam0 = pose0.Inverse();
     const Eigen::Matrix3d object_r =
         object_from_world.rotation.toRotationMatrix();
     const Eigen::Vector3d object_t = object_from_world.translation;
-    const Eigen::Matrix3d r =
-        object_r * world_from_cam0.rotation.toRotationMatrix();
-    // Camera-0 z: the third row of cam_from_world.
-    const Eigen::Vector3d zrow =
-        pose0.rotation.toRotationMatrix().row(2).transpose();
-    const double tz = pose0.translation.z();
-    const size_t m = object.points_in_object.size();
-    object.footprint_u.resize(m);
-    object.footprint_v.resize(m);
-    for (size_t i = 0; i < m; ++i) {
-      Eigen::Vector3f& p = object.points_in_object.positions[i];
-      const Eigen::Vector3d pd = p.cast<double>();
-      const double z = zrow.dot(pd) + tz;
-      object.footprint_u[i] = (r.col(0) * (z / camera0.fx)).cast<float>();
-      object.footprint_v[i] = (r.col(1) * (z / camera0.fy)).cast<float>();
-      p = (object_r * pd + object_t).cast<float>();
-    }
+    for (Eigen::Vector3f& p : object.points_in_object.positions)
+      p = (object_r * p.cast<double>() + object_t).cast<float>();
     return object;
   };
+  // Subsampling per frame, then the footprints, only for objects drawn with
+  // k > 1 somewhere (footprint of point i: camera-0 pixel steps at its
+  // camera-0 depth, in the object frame).
   auto set_subsamples = [&](const Segment& seg, DynamicObject* object) {
-    SetSubsamples(cameras, cam_from_world,
-                  seg.box0 ? seg.box0->WorldFromBox() : Rigid3d(), output_width,
+    const Rigid3d world_from_object0 =
+        seg.box0 ? seg.box0->WorldFromBox() : Rigid3d();
+    SetSubsamples(cameras, cam_from_world, world_from_object0, output_width,
                   options.max_subsamples, object);
+    bool magnified = false;
+    for (const std::optional<ObjectPose>& pose : object->poses)
+      magnified = magnified || (pose && pose->subsamples > 1);
+    if (!magnified) return;
+    const Eigen::Matrix3d world_r =
+        world_from_object0.rotation.toRotationMatrix();
+    const Eigen::Matrix3d cam_r = pose0.rotation.toRotationMatrix();
+    // object_from_cam0 rotation: R_o^T R_c^T.
+    const Eigen::Matrix3d r = world_r.transpose() * cam_r.transpose();
+    // Camera-0 z of x_world = R_o x + t_o: (R_c.row(2) R_o) x + R_c.row(2) t_o
+    // + t_c.z.
+    const Eigen::Vector3d zrow = (cam_r.row(2) * world_r).transpose();
+    const double tz = cam_r.row(2).dot(world_from_object0.translation) +
+                      pose0.translation.z();
+    const size_t m = object->points_in_object.size();
+    object->footprint_u.resize(m);
+    object->footprint_v.resize(m);
+    for (size_t i = 0; i < m; ++i) {
+      const double z =
+          zrow.dot(object->points_in_object.positions[i].cast<double>()) + tz;
+      object->footprint_u[i] = (r.col(0) * (z / camera0.fx)).cast<float>();
+      object->footprint_v[i] = (r.col(1) * (z / camera0.fy)).cast<float>();
+    }
   };
 
   for (size_t k = 0; k < boxes.instances.size(); ++k) {
@@ -1428,18 +1445,19 @@ DynamicEditResult RenderWithDynamicEdits(
                                                     : omp_get_max_threads());
     DynamicEditOptions build_options = options;
     build_options.num_threads = ro.num_threads;
-    const DynamicScene scene =
+    DynamicScene scene =
         BuildDynamicScene(cloud_in_world, cameras, cam_from_world, boxes, edits,
                           build_options, &result.summary, render_options.width);
     for (const DynamicObject& o : scene.objects)
       result.render_ids.push_back(o.id);
+    const std::vector<size_t> hidden = std::move(scene.hidden);
     // One depth test per frame over the background and that frame's moved
     // objects, so objects and background occlude each other correctly. Each
     // object is packed once in its own frame (once per footprint sampling k
     // it uses) and only projected per frame.
     RenderResult rendered;
-    RenderFramesWithMovingSets(cloud_in_world, MovingSets(scene), cameras,
-                               cam_from_world, ro, &rendered, scene.hidden);
+    RenderFramesWithMovingSets(cloud_in_world, MovingSets(std::move(scene)),
+                               cameras, cam_from_world, ro, &rendered, hidden);
     result.frames = std::move(rendered.frames);
   }
   result.summary.seconds =

@@ -183,7 +183,8 @@ struct DynamicObject {
       0;  // written to instance_ids / the per-pixel instance image
   PointCloud points_in_object;  // colours and positions in the object frame
   // Per point: the frame-0 pixel footprint's edge vectors (camera-0 x and y
-  // pixel steps at the point's depth), in the object frame.
+  // pixel steps at the point's depth), in the object frame. Empty when no
+  // frame draws the object with subsamples > 1.
   std::vector<Eigen::Vector3f> footprint_u, footprint_v;
   std::vector<std::optional<ObjectPose>>
       poses;  // per frame; nullopt = not drawn
