@@ -618,6 +618,7 @@ struct FastBox {
   Eigen::Matrix3f box_from_world;
   Eigen::Vector3f center, half;
   Eigen::Vector3f extent;  // half-size of the world-axis-aligned bounding box
+  float bottom;            // box-frame z of the bottom face (no margin)
   float radius2;
   FastBox(const Box3d& box, double margin) {
     box_from_world =
@@ -625,6 +626,7 @@ struct FastBox {
     center = box.center.cast<float>();
     half = (box.HalfExtents().array() + margin).matrix().cast<float>();
     radius2 = half.squaredNorm() * 1.0001f + 1e-6f;
+    bottom = static_cast<float>(-0.5 * box.size[2]);
     // Row i of world_from_box is column i of box_from_world; padded for the
     // float rounding of Contains().
     extent = (box_from_world.transpose().cwiseAbs() * half).array() * 1.0001f +
@@ -636,6 +638,10 @@ struct FastBox {
     const Eigen::Vector3f q = box_from_world * d;
     return std::abs(q.x()) <= half.x() && std::abs(q.y()) <= half.y() &&
            std::abs(q.z()) <= half.z();
+  }
+  // Height of a point above the box's bottom face (box z is up).
+  float HeightAboveBottom(const Eigen::Vector3f& p) const {
+    return (box_from_world.row(2).dot(p - center)) - bottom;
   }
 };
 
@@ -879,8 +885,22 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
                   [](const Track& t) { return !t.box_3d[0] && t.box_2d[0]; });
   Frame0Projection proj;
   if (need_2d_seg) proj = ProjectFrame0(cloud_in_world, camera0, pose0);
+  // The ground plane serves 2D-box segmentation and lifting 2D boxes (frames
+  // without a 3D box); with 3D boxes throughout it is not needed (each box's
+  // bottom face is the ground there), so it is only estimated when needed.
+  bool need_plane = need_2d_seg;
+  auto has_2d_only_frames = [](const BoxSequence& seq) {
+    for (const BoxFrame& f : seq.frames)
+      if (f.box_2d && !f.box_3d) return true;
+    return false;
+  };
+  for (const BoxSequence& seq : boxes.instances)
+    need_plane = need_plane || has_2d_only_frames(seq);
+  for (const ObjectEdit& e : edits)
+    need_plane = need_plane || (e.kind != ObjectEditKind::kRemove &&
+                                has_2d_only_frames(e.sequence));
   std::optional<Eigen::Vector4d> plane = options.ground_plane;
-  if (!plane && !boxes.instances.empty()) {
+  if (!plane && need_plane) {
     std::vector<cv::Rect> windows;
     std::vector<FastBox> boxes3d;
     for (const Track& t : tracks) {
@@ -946,8 +966,16 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
     };
     if (t.box_3d[0]) {
       seg.box0 = *t.box_3d[0];
+      const FastBox& fast = fast_boxes[fast_box_of[k]];
+      const float margin = static_cast<float>(options.ground_margin);
       for (size_t i : in_box[fast_box_of[k]]) {
-        if (!taken[i] && above_ground(i)) seg.indices.push_back(i);
+        if (taken[i]) continue;
+        // Road points: near the ground plane, or without one, near the box's
+        // bottom face.
+        if (plane
+                ? above_ground(i)
+                : fast.HeightAboveBottom(cloud_in_world.positions[i]) > margin)
+          seg.indices.push_back(i);
       }
     } else {
       const Box2d box = *PixelBox(t, 0, boxes, camera0, pose0);

@@ -89,11 +89,13 @@ struct DynamicEditOptions {
   // 3D boxes are grown by this on every side when selecting points.
   double box_margin = 0.05;
   // Points closer than this to the ground plane (or below it) are road, never
-  // object.
+  // object. Instances segmented by a 3D box use the box's bottom face as the
+  // ground when no plane is given or needed.
   double ground_margin = 0.15;
   // World ground plane n . x + d = 0 as (n, d), n a unit normal pointing up
-  // (towards the camera). Estimated by RANSAC from the cloud (subsampled,
-  // seeded) when not given.
+  // (towards the camera). When not given, estimated by RANSAC from the cloud
+  // (subsampled, seeded) if something needs it: an instance with only a 2D box
+  // in frame 0, or a frame with a 2D box and no 3D box (lifting).
   std::optional<Eigen::Vector4d> ground_plane;
   // RANSAC: candidate normals within this angle of camera 0's up axis (-y);
   // inlier distance is `ground_margin`.

@@ -109,10 +109,10 @@ TEST(DynamicEdit, ThreeDModeMatchesTrueVehicleMasksIncludingOcclusion) {
   std::printf("%s\n%s\n", r3.summary.BriefReport().c_str(),
               r2.summary.BriefReport().c_str());
   EXPECT_EQ(r3.summary.num_objects, 5);
-  // The ground plane z = 0 is found.
-  ASSERT_TRUE(r3.summary.ground_plane.has_value());
-  EXPECT_NEAR((*r3.summary.ground_plane)[2], 1.0, 1e-3);
-  EXPECT_NEAR((*r3.summary.ground_plane)[3], 0.0, 0.02);
+  // 3D boxes in every frame: no ground plane is needed (each box's bottom
+  // face is the ground), so none is estimated.
+  EXPECT_FALSE(r3.summary.ground_plane.has_value());
+  EXPECT_FALSE(r3.summary.ground_plane_estimated);
 
   // v2 (nearer) passes in front of v3: frames where a part of v3 is hidden by
   // v2.
@@ -199,6 +199,11 @@ TEST(DynamicEdit, ThreeDModeFromTwoDBoxesLiftsOntoTheGround) {
                              boxes2d, {}, o, TestRenderOptions(scene));
   std::printf("%s\n", r.summary.BriefReport().c_str());
   EXPECT_EQ(r.summary.num_objects, 5);
+  // 2D boxes only: the ground plane z = 0 is estimated.
+  ASSERT_TRUE(r.summary.ground_plane.has_value());
+  EXPECT_TRUE(r.summary.ground_plane_estimated);
+  EXPECT_NEAR((*r.summary.ground_plane)[2], 1.0, 1e-3);
+  EXPECT_NEAR((*r.summary.ground_plane)[3], 0.0, 0.02);
   const auto ious = VehicleIoUs(scene, r);
   for (size_t k = 0; k < scene.vehicles.size(); ++k) {
     double sum = 0, mn = 1;
@@ -220,6 +225,39 @@ TEST(DynamicEdit, ThreeDModeFromTwoDBoxesLiftsOntoTheGround) {
     // be covered.
     EXPECT_GE(sum / n, 0.6) << scene.vehicles[k].id;
   }
+}
+
+TEST(DynamicEdit, ThreeDBoxSegmentationLeavesRoadPointsAtTheBoxBottom) {
+  // Without a ground plane, a 3D box's bottom face is the ground: points
+  // within ground_margin of it (the road under and beside the vehicle, inside
+  // the box grown by box_margin) stay in the background.
+  const Scene& scene = TestScene();
+  DynamicEditOptions o;
+  DynamicEditSummary summary;
+  const DynamicScene dyn =
+      BuildDynamicScene(scene.cloud, {scene.camera}, scene.cam_from_world,
+                        scene.boxes, {}, o, &summary);
+  ASSERT_FALSE(summary.ground_plane.has_value());
+  ASSERT_EQ(dyn.objects.size(), scene.vehicles.size());
+  int road_in_boxes = 0;
+  for (size_t k = 0; k < scene.vehicles.size(); ++k) {
+    const Box3d& box0 = scene.vehicles[k].boxes[0];
+    for (const Eigen::Vector3f& p : scene.cloud.positions)
+      road_in_boxes += box0.Contains(p.cast<double>(), o.box_margin) &&
+                       p.z() < o.ground_margin;
+    const DynamicObject& object = dyn.objects[k];
+    ASSERT_TRUE(object.poses[0].has_value());
+    float lowest = 1e9f;
+    for (const Eigen::Vector3f& p : object.points_in_object.positions) {
+      const Eigen::Vector3d w =
+          object.poses[0]->world_from_object *
+          object.poses[0]->scale.cwiseProduct(p.cast<double>());
+      lowest = std::min(lowest, static_cast<float>(w.z()));
+    }
+    // The ground is z = 0 and every box sits on it.
+    EXPECT_GT(lowest, o.ground_margin - 1e-4) << object.id;
+  }
+  EXPECT_GT(road_in_boxes, 100);  // there were road points to leave out
 }
 
 TEST(DynamicEdit, RemovalLeavesNoPointOfTheObject) {
