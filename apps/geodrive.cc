@@ -1,4 +1,5 @@
-// The `geodrive` command-line tool: one binary, one subcommand per task (apps/*_command.cc).
+// The `geodrive` command-line tool: one binary, one subcommand per task
+// (apps/*_command.cc).
 
 #include <glog/logging.h>
 
@@ -8,6 +9,7 @@
 
 #include "apps/command.h"
 #include "geodrive_version.h"
+#include "geometry/memory.h"
 #include "geometry/status.h"
 
 namespace geodrive {
@@ -21,21 +23,26 @@ std::vector<CommandSpec>& CommandRegistry() {
 
 int main(int argc, char** argv) {
   using namespace geodrive;
+  ConfigureAllocatorForThroughput();  // geometry/memory.h
   google::InitGoogleLogging(argv[0]);
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = 1;  // warnings and errors only
 
   CLI::App app{"geodrive " GEODRIVE_VERSION
-               " -- geometry toolkit and dataset builder for the GeoDrive driving world model.\n"
+               " -- geometry toolkit and dataset builder for the GeoDrive "
+               "driving world model.\n"
                "Run `geodrive <command> --help` for the options of a command.",
                "geodrive"};
-  app.set_version_flag("--version", std::string("geodrive ") + GEODRIVE_VERSION);
+  app.set_version_flag("--version",
+                       std::string("geodrive ") + GEODRIVE_VERSION);
   app.require_subcommand(1);
   app.fallthrough(false);
 
   auto& registry = CommandRegistry();
   std::sort(registry.begin(), registry.end(),
-            [](const CommandSpec& a, const CommandSpec& b) { return a.name < b.name; });
+            [](const CommandSpec& a, const CommandSpec& b) {
+              return a.name < b.name;
+            });
   std::map<CLI::App*, CommandRunner> runners;
   for (const auto& spec : registry) {
     CLI::App* sub = app.add_subcommand(spec.name, spec.description);
@@ -52,7 +59,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // One line naming the problem, exit 2.
-    std::cerr << "geodrive: error: " << e.what() << " (see `geodrive --help`)" << std::endl;
+    std::cerr << "geodrive: error: " << e.what() << " (see `geodrive --help`)"
+              << std::endl;
     return kExitBadInput;
   }
 
@@ -61,11 +69,12 @@ int main(int argc, char** argv) {
     try {
       return runner();
     } catch (const InputError& e) {
-      std::cerr << "geodrive " << sub->get_name() << ": error: " << e.what() << std::endl;
+      std::cerr << "geodrive " << sub->get_name() << ": error: " << e.what()
+                << std::endl;
       return kExitBadInput;
     } catch (const std::exception& e) {
-      std::cerr << "geodrive " << sub->get_name() << ": internal error: " << e.what()
-                << std::endl;
+      std::cerr << "geodrive " << sub->get_name()
+                << ": internal error: " << e.what() << std::endl;
       return kExitInternal;
     }
   }

@@ -13,6 +13,7 @@
 #include "diffusion/sampler.h"
 #include "diffusion/train.h"
 #include "geodrive_version.h"
+#include "geometry/memory.h"
 #include "geometry/status.h"
 
 namespace geodrive::diffusion {
@@ -23,6 +24,7 @@ void AddGenerateCommand(CLI::App* app, std::function<int()>* run);
 int main(int argc, char** argv) {
   using namespace geodrive;
   using namespace geodrive::diffusion;
+  ConfigureAllocatorForThroughput();  // geometry/memory.h
   google::InitGoogleLogging(argv[0]);
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = 1;
