@@ -8,7 +8,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "geometry/memory.h"
+#include "bench/bench_main.h"
 #include "render/renderer.h"
 #include "tests/render/render_test_util.h"
 
@@ -80,13 +80,4 @@ BENCHMARK(BM_Render25Frames)
 }  // namespace
 }  // namespace geodrive
 
-// The allocator policy of the geodrive binaries (geometry/memory.h): freed
-// frames are reused instead of page-faulted again on every iteration.
-int main(int argc, char** argv) {
-  geodrive::ConfigureAllocatorForThroughput();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
-}
+GEODRIVE_BENCHMARK_MAIN();

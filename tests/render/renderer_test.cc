@@ -482,6 +482,15 @@ RenderOptions MovingSetOptions(const PinholeCamera& camera, RenderMode mode) {
   return options;
 }
 
+// Five camera poses moving forward and turning slightly.
+std::vector<Rigid3d> MovingSetCameraPoses() {
+  std::vector<Rigid3d> poses;
+  for (int f = 0; f < 5; ++f)
+    poses.emplace_back(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.01 * f, 0)),
+                       Eigen::Vector3d(0.05 * f, 0, -0.1 * f));
+  return poses;
+}
+
 TEST(Renderer, MovingSetsWithIdentityPosesEqualTheConcatenatedCloudExactly) {
   // Identity transforms compose to exactly the camera's projection, so the
   // result must be byte-identical: index layout, ties (static first, then
@@ -489,10 +498,7 @@ TEST(Renderer, MovingSetsWithIdentityPosesEqualTheConcatenatedCloudExactly) {
   // frames where a set is not drawn.
   const PinholeCamera camera(60, 64, 44.0, 26.0, 80, 56);
   const PointCloud static_cloud = RandomOverlappingCloud(1500);
-  std::vector<Rigid3d> poses;
-  for (int f = 0; f < 5; ++f)
-    poses.emplace_back(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.01 * f, 0)),
-                       Eigen::Vector3d(0.05 * f, 0, -0.1 * f));
+  const std::vector<Rigid3d> poses = MovingSetCameraPoses();
   std::vector<MovingPointSet> sets(2);
   for (int k = 0; k < 2; ++k) {
     sets[k].points = RandomOverlappingCloud(300);
@@ -546,10 +552,7 @@ TEST(Renderer, MovingSetsFollowTheirTransforms) {
   // move a disk edge across a pixel centre, so a few pixels may differ.
   const PinholeCamera camera(60, 64, 44.0, 26.0, 80, 56);
   const PointCloud static_cloud = RandomOverlappingCloud(1500);
-  std::vector<Rigid3d> poses;
-  for (int f = 0; f < 5; ++f)
-    poses.emplace_back(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.01 * f, 0)),
-                       Eigen::Vector3d(0.05 * f, 0, -0.1 * f));
+  const std::vector<Rigid3d> poses = MovingSetCameraPoses();
   std::vector<MovingPointSet> sets(2);
   for (int k = 0; k < 2; ++k) {
     PointCloud c = RandomOverlappingCloud(300);
