@@ -1484,7 +1484,16 @@ DynamicEditResult RenderWithDynamicEdits(
     // object is packed once in its own frame (once per footprint sampling k
     // it uses) and only projected per frame.
     RenderResult rendered;
-    RenderFramesWithMovingSets(cloud_in_world, MovingSets(std::move(scene)),
+    // Background pixels get instance -1: the input cloud's own instance ids
+    // (if any) are dropped when the instance map is asked for.
+    PointCloud without_ids;
+    const PointCloud* background = &cloud_in_world;
+    if (ro.output_instance && cloud_in_world.HasInstanceIds()) {
+      without_ids.positions = cloud_in_world.positions;
+      without_ids.colors = cloud_in_world.colors;
+      background = &without_ids;
+    }
+    RenderFramesWithMovingSets(*background, MovingSets(std::move(scene)),
                                cameras, cam_from_world, ro, &rendered, hidden);
     result.frames = std::move(rendered.frames);
   }

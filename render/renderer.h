@@ -174,8 +174,9 @@ struct MovingPointSet {
 // then to earlier sets. `hidden_static` (ascending, unique, < S) lists static
 // points left out, e.g. the source points of objects that now move. Everything
 // is validated and packed once per call; per frame a set costs only the
-// projection of its points. The static cloud may be empty. Throws InputError
-// on bad input.
+// projection of its points. The static points' instance output is the static
+// cloud's instance_ids (-1 without). The static cloud may be empty. Throws
+// InputError on bad input.
 void RenderFramesWithMovingSets(const PointCloud& static_cloud,
                                 const std::vector<MovingPointSet>& sets,
                                 const std::vector<PinholeCamera>& cameras,

@@ -338,6 +338,22 @@ TEST(DynamicEdit, ThreeDBoxSegmentationLeavesRoadPointsAtTheBoxBottom) {
   EXPECT_GT(road_in_boxes, 100);  // there were road points to leave out
 }
 
+TEST(DynamicEdit, BackgroundPixelsHaveNoInstanceEvenIfTheCloudCarriesIds) {
+  const Scene& scene = TestScene();
+  PointCloud cloud = scene.cloud;
+  cloud.instance_ids.assign(cloud.size(), 99);
+  const DynamicEditResult r = RenderWithDynamicEdits(
+      cloud, {scene.camera}, scene.cam_from_world, scene.boxes, {},
+      DynamicEditOptions(), TestRenderOptions(scene));
+  ASSERT_EQ(r.render_ids.size(), 5u);
+  int background = 0;
+  for (const RenderedFrame& f : r.frames) {
+    EXPECT_EQ(cv::countNonZero(f.instance == 99), 0);
+    background += cv::countNonZero((f.instance == -1) & (f.mask > 0));
+  }
+  EXPECT_GT(background, 1000);
+}
+
 TEST(DynamicEdit, RemovalLeavesNoPointOfTheObject) {
   const Scene& scene = TestScene();
   const int victim = 1;
