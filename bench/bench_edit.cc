@@ -1,15 +1,17 @@
 // Dynamic-editing benchmark: a 25-frame clip at 512x288 (the released
 // pipeline's render size) of the synthetic street in
-// tests/render/edit_test_scene.h (~140k-point frame-0 pointmap cloud, five
-// moving vehicles with 3D boxes), z-buffer splatting.
+// tests/render/edit_test_scene.h (128k-point frame-0 pointmap cloud, five
+// moving vehicles with 3D boxes), z-buffer splatting, fresh outputs per call.
 //
 //   build/bench/bench_edit
+//   bench/edit_overhead.sh build/bench/bench_edit 9   (the overhead target)
 //
 // BM_PlainRender: RenderFrames of the unedited cloud (the baseline).
-// BM_Edit3d: RenderWithDynamicEdits in 3D mode: ground-plane RANSAC,
-// segmentation of the five
-//   vehicles, per-frame composition (footprint densification when approached)
-//   and one z-buffer pass per frame.
+// BM_Edit3d: RenderWithDynamicEdits in 3D mode: segmentation of the five
+// vehicles in their 3D boxes, poses, then one depth test per frame over the
+// background and the moving vehicles (RenderFramesWithMovingSets; footprint
+// samples for a vehicle drawn magnified).
+// BM_BuildScene3d: the scene building alone.
 // BM_Edit2d: the upstream-compatible 2D mode (point deletion, static render,
 // feathered pastes). Figures and target (3D editing <= 1.3x the plain render):
 // docs/PERFORMANCE.md, "Dynamic editing".
