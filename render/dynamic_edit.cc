@@ -1041,8 +1041,9 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
                   std::to_string(options.min_object_points) + "); left static");
       continue;
     }
-    // Lift reference (used when a frame has only a 2D box).
-    if (seg.box0) {
+    // Lift reference (used when a frame has only a 2D box, which is what
+    // need_plane says).
+    if (seg.box0 && need_plane) {
       const std::optional<Box2d> b = PixelBox(t, 0, boxes, camera0, pose0);
       if (b) seg.lift.box0 = *b;
       // Camera-0 z: the third row of cam_from_world.
