@@ -1095,53 +1095,20 @@ void Summarise(int64_t num_points,
 
 }  // namespace
 
-void RenderFramesInto(const PointCloud& cloud_in_world,
-                      const std::vector<PinholeCamera>& cameras,
-                      const std::vector<Rigid3d>& cam_from_world,
-                      const RenderOptions& options,
-                      RenderResult* result_out) {
-  const auto start = std::chrono::steady_clock::now();
-  const std::vector<PinholeCamera> frame_cameras =
-      CheckFrames(cameras, cam_from_world, options);
-  CheckCloud(cloud_in_world);
-  const int num_frames = static_cast<int>(cam_from_world.size());
-  PackedCloud packed;
-  packed.Assign(0, cloud_in_world, options);
-  RenderResult& result = *result_out;
-  result.frames.resize(num_frames);
-  const int threads =
-      options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
-#pragma omp parallel num_threads(std::min(threads, num_frames))
-  {
-    // Scratch buffers persist per thread across calls (OpenMP reuses its
-    // threads), so rendering many clips does not pay for fresh allocations and
-    // page faults every time.
-    thread_local Scratch scratch;
-    std::vector<ProjectedRange> ranges;
-#pragma omp for schedule(dynamic, 1)
-    for (int f = 0; f < num_frames; ++f) {
-      ranges.assign(
-          1, ProjectedRange{
-                 0, static_cast<int>(packed.size()),
-                 FrameProjector(frame_cameras[f], cam_from_world[f], options)});
-      RenderOne(packed, ranges, options, &scratch, &result.frames[f]);
-    }
-  }
-  Summarise(static_cast<int64_t>(cloud_in_world.size()), start, &result);
-}
+namespace {
 
-void RenderFramesWithMovingSets(const PointCloud& static_cloud,
-                                const std::vector<MovingPointSet>& sets,
-                                const std::vector<PinholeCamera>& cameras,
-                                const std::vector<Rigid3d>& cam_from_world,
-                                const RenderOptions& options,
-                                RenderResult* result_out,
-                                const std::vector<size_t>& hidden_static) {
-  const auto start = std::chrono::steady_clock::now();
-  const std::vector<PinholeCamera> frame_cameras =
-      CheckFrames(cameras, cam_from_world, options);
+// RenderFramesInto and RenderFramesWithMovingSets after their static-cloud
+// check: validates the sets and hidden indices, packs everything once and
+// renders the frames.
+void RenderCheckedScene(const PointCloud& static_cloud,
+                        const std::vector<MovingPointSet>& sets,
+                        const std::vector<size_t>& hidden_static,
+                        const std::vector<PinholeCamera>& frame_cameras,
+                        const std::vector<Rigid3d>& cam_from_world,
+                        const RenderOptions& options,
+                        std::chrono::steady_clock::time_point start,
+                        RenderResult* result_out) {
   const int num_frames = static_cast<int>(cam_from_world.size());
-  static_cloud.Check("render: static point cloud");
   // The static points drawn, as runs [begin, end) between hidden points.
   std::vector<std::pair<int, int>> static_runs;
   {
@@ -1198,6 +1165,9 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
       options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
 #pragma omp parallel num_threads(std::min(threads, num_frames))
   {
+    // Scratch buffers persist per thread across calls (OpenMP reuses its
+    // threads), so rendering many clips does not pay for fresh allocations and
+    // page faults every time.
     thread_local Scratch scratch;
     std::vector<ProjectedRange> ranges;
 #pragma omp for schedule(dynamic, 1)
@@ -1222,6 +1192,36 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
     }
   }
   Summarise(static_cast<int64_t>(total - hidden_static.size()), start, &result);
+}
+
+}  // namespace
+
+void RenderFramesInto(const PointCloud& cloud_in_world,
+                      const std::vector<PinholeCamera>& cameras,
+                      const std::vector<Rigid3d>& cam_from_world,
+                      const RenderOptions& options,
+                      RenderResult* result_out) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<PinholeCamera> frame_cameras =
+      CheckFrames(cameras, cam_from_world, options);
+  CheckCloud(cloud_in_world);
+  RenderCheckedScene(cloud_in_world, {}, {}, frame_cameras, cam_from_world,
+                     options, start, result_out);
+}
+
+void RenderFramesWithMovingSets(const PointCloud& static_cloud,
+                                const std::vector<MovingPointSet>& sets,
+                                const std::vector<PinholeCamera>& cameras,
+                                const std::vector<Rigid3d>& cam_from_world,
+                                const RenderOptions& options,
+                                RenderResult* result_out,
+                                const std::vector<size_t>& hidden_static) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<PinholeCamera> frame_cameras =
+      CheckFrames(cameras, cam_from_world, options);
+  static_cloud.Check("render: static point cloud");
+  RenderCheckedScene(static_cloud, sets, hidden_static, frame_cameras,
+                     cam_from_world, options, start, result_out);
 }
 
 }  // namespace geodrive
