@@ -321,7 +321,13 @@ int RunRender(RenderArgs a) {
   std::cout << a.out << ": " << result.frames.size() << " frames "
             << frames[0].cols << "x" << frames[0].rows << " ("
             << ToString(options.mode) << ", preset " << ToString(preset)
-            << ", edits: " << a.edits.Describe() << ") from " << cloud.size()
+            << ", trajectory edits: " << a.edits.Describe()
+            << (a.dynamic.boxes_path.empty()
+                    ? std::string()
+                    : ", objects: " + a.dynamic.edit_mode + " mode, " +
+                          std::to_string(dynamic_edit["edits"].size()) +
+                          " applied")
+            << ") from " << cloud.size()
             << " points; "
             << "coverage mean " << Fixed(result.summary.mean_coverage, 3)
             << " min " << Fixed(result.summary.min_coverage, 3) << "; "
