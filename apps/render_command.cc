@@ -327,8 +327,7 @@ int RunRender(RenderArgs a) {
                     : ", objects: " + a.dynamic.edit_mode + " mode, " +
                           std::to_string(dynamic_edit["edits"].size()) +
                           " applied")
-            << ") from " << cloud.size()
-            << " points; "
+            << ") from " << cloud.size() << " points; "
             << "coverage mean " << Fixed(result.summary.mean_coverage, 3)
             << " min " << Fixed(result.summary.min_coverage, 3) << "; "
             << (a.no_video ? std::string("no video")
