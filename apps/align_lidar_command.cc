@@ -6,13 +6,13 @@
 #include <memory>
 
 #include "apps/command.h"
-#include "dataset/clips.h"
-#include "dataset/job.h"
+#include "dataset/drive_dataset.h"
+#include "geometry/util/files.h"
+#include "geometry/util/progress.h"
 #include "dataset/lidar_alignment.h"
-#include "dataset/nuscenes.h"
 #include "geometry/image_io.h"
 #include "geometry/monst3r.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
 
 namespace geodrive {
@@ -27,26 +27,17 @@ struct Args {
 };
 
 int Run(const Args& a) {
-  NuscenesOptions no;
-  no.dataroot = a.dataroot;
-  no.version = a.version;
-  const Nuscenes nusc(no);
-  ClipOptions co;
-  co.stride = 1;  // every start: any clip id of any stride resolves
-  const auto slash = a.clip.rfind('_');
-  GEODRIVE_CHECK_INPUT(slash != std::string::npos, "--clip: '", a.clip,
-                       "' is not a clip id (<scene>_<start>)");
-  const int32_t scene = nusc.FindScene(a.clip.substr(0, slash));
-  GEODRIVE_CHECK_INPUT(scene != kNoIndex, "--clip: scene '",
-                       a.clip.substr(0, slash), "' not found in ",
-                       nusc.VersionDir());
-  const Clip* clip = nullptr;
-  const std::vector<Clip> clips = SelectSceneClips(nusc, scene, co);
-  for (const auto& c : clips) {
-    if (c.id == a.clip) clip = &c;
+  DriveDatasetOptions dso;
+  dso.root = a.dataroot;
+  dso.version = a.version;
+  dso.clip_stride = 1;  // every start: any clip id of any stride resolves
+  const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
+  DriveClip clip;
+  try {
+    clip = dataset->LoadClip(a.clip);
+  } catch (const InputError& e) {
+    ThrowInputError("--clip", e.what());
   }
-  GEODRIVE_CHECK_INPUT(clip, "--clip: '", a.clip,
-                       "' is not a 25-frame clip of the dataset");
   const Monst3rFolder folder = Monst3rFolder::Open(a.monst3r);
   LidarScaleOptions options;
   options.sweep = a.sweep == "keyframe" ? LidarSweepChoice::kKeyframe
@@ -54,7 +45,7 @@ int Run(const Args& a) {
   options.max_time_gap_s = a.max_gap_ms * 1e-3;
   options.alignment = ParseAlignmentType(a.alignment);
   const ClipScaleReport report =
-      FitClipLidarScale(nusc, clip->sample_data, folder, options);
+      FitClipLidarScale(clip, folder, options);
   std::filesystem::create_directories(a.out);
   WriteFileAtomic(a.out + "/report.json", ClipScaleReportToJson(report));
   // The residual picture of the frame with the most LiDAR samples.

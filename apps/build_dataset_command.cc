@@ -7,8 +7,9 @@
 
 #include "apps/command.h"
 #include "dataset/build_dataset.h"
-#include "dataset/job.h"
-#include "geometry/status.h"
+#include "geometry/util/files.h"
+#include "geometry/util/progress.h"
+#include "geometry/util/status.h"
 
 #ifdef GEODRIVE_WITH_MPI
 // C API only (OpenMPI would otherwise pull in its deprecated C++ bindings).

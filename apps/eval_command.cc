@@ -16,7 +16,7 @@
 #include "eval/report.h"
 #include "eval/trajectory_metrics.h"
 #include "eval/video_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
 
 namespace geodrive {

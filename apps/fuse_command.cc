@@ -9,7 +9,7 @@
 #include "geometry/monst3r.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/pointmap.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

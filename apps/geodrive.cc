@@ -9,8 +9,8 @@
 
 #include "apps/command.h"
 #include "geodrive_version.h"
-#include "geometry/memory.h"
-#include "geometry/status.h"
+#include "geometry/util/memory.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

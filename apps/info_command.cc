@@ -9,7 +9,7 @@
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
 #include "geometry/point_cloud_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
 
 namespace geodrive {

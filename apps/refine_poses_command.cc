@@ -12,7 +12,7 @@
 #include "geometry/monst3r.h"
 #include "geometry/pointmap.h"
 #include "geometry/pose_refinement.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
 
 namespace geodrive {

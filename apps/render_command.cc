@@ -26,12 +26,9 @@
 #include <sstream>
 
 #include "apps/command.h"
+#include "dataset/scene_source.h"
 #include "geometry/image_io.h"
-#include "geometry/monst3r.h"
-#include "geometry/npy.h"
-#include "geometry/point_cloud_io.h"
-#include "geometry/pointmap.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
 #include "render/dynamic_edit.h"
@@ -126,16 +123,11 @@ int RunRender(RenderArgs a) {
   a.edits.forward_then_back = a.reverse;
   a.edits.Check();
 
-  // ---- Input cloud, its frame-0 camera and the trajectory in the cloud's
-  // world ----
-  PointCloud cloud;
+  // ---- The scene (dataset/scene_source.h) and the trajectory in its frame
   PinholeCamera camera;
   bool have_camera = false;
-  cv::Mat real_frame0;
-  std::vector<cv::Mat> ground_truth;
   Trajectory trajectory;
   std::string units = "unknown";
-  std::string input_desc;
   TrajectoryFileInfo traj_info;
   if (!a.trajectory.empty()) {
     trajectory = ReadTrajectoryAny(
@@ -147,58 +139,43 @@ int RunRender(RenderArgs a) {
       have_camera = true;
     }
   }
+  SceneInputs in;
+  std::string source;
   if (!a.cloud.empty()) {
-    cloud = ReadPointCloud(a.cloud);
-    input_desc = "cloud " + a.cloud;
-    // The trajectory is in the cloud's world frame (absolute poses).
+    // The trajectory is in the cloud's world frame (absolute poses);
     // --intrinsics with --cloud: K for an image of the render size.
-    if (!a.intrinsics.empty()) {
-      camera = ReadIntrinsicsFile(a.intrinsics, options.width, options.height);
-      have_camera = true;
-    }
+    source = "cloud";
+    in.path = a.cloud;
+    in.intrinsics_path = a.intrinsics;
+    in.intrinsics_width = options.width;
+    in.intrinsics_height = options.height;
   } else if (!a.image.empty()) {
-    real_frame0 = ReadImageRgb(a.image);
-    const cv::Mat depth = ReadDepthNpy(a.depth);
-    GEODRIVE_CHECK_INPUT(depth.size() == real_frame0.size(), a.depth,
-                         ": depth is ", depth.cols, "x", depth.rows, " but ",
-                         a.image, " is ", real_frame0.cols, "x",
-                         real_frame0.rows);
-    camera = ReadIntrinsicsFile(a.intrinsics, depth.cols, depth.rows);
-    have_camera = true;
-    cloud = CloudFromDepth(depth, real_frame0, camera, Rigid3d());
-    input_desc = "image " + a.image + " + depth " + a.depth;
-    // The cloud is in the image's camera frame: poses relative to the
-    // trajectory's first frame.
-    trajectory = trajectory.RelativeToFirst();
+    source = "image-depth";
+    in.path = a.depth;
+    in.image_path = a.image;
+    in.intrinsics_path = a.intrinsics;
   } else {
-    const Monst3rFolder folder = Monst3rFolder::Open(a.monst3r);
-    Monst3rLoadOptions lo;
-    lo.confidence = lo.dynamic_masks = lo.enlarged_dynamic_masks = false;
-    lo.reject_all_invalid_confidence = false;
-    GEODRIVE_CHECK_INPUT(folder.has_rgb(), a.monst3r,
-                         ": frame_0000.png is missing (needed for "
-                         "colours)");
-    const Monst3rFrame f0 = folder.LoadFrame(0, lo);
-    real_frame0 = f0.rgb;
-    camera = f0.camera;
+    source = "monst3r";
+    in.path = a.monst3r;
+  }
+  SceneSourceOptions scene_options;
+  scene_options.filter = PointmapFilter::kReleased;  // as the released scripts
+  const ConditionScene scene = BuildConditionScene(source, in, scene_options);
+  const PointCloud& cloud = scene.cloud;
+  const std::string& input_desc = scene.description;
+  if (scene.has_camera) {
+    camera = scene.camera;
     have_camera = true;
-    // The released pipeline: frame-0 pointmap, no confidence threshold.
-    cloud = CloudFromDepth(f0.depth, f0.rgb, f0.camera, f0.world_from_cam);
-    input_desc = "MonST3R " + a.monst3r + " frame 0";
-    units = "monst3r";
-    if (a.trajectory.empty()) {
-      trajectory = folder.trajectory();
-      for (int i = 0; i < folder.num_frames(); ++i) {
-        ground_truth.push_back(ReadImageRgb(folder.RgbPath(i)));
-      }
-    } else {
-      // A user trajectory is taken relative to its first frame, starting at
-      // MonST3R frame 0.
-      const Trajectory rel = trajectory.RelativeToFirst();
-      trajectory = rel;
-      for (auto& pose : trajectory.world_from_cam)
-        pose = f0.world_from_cam * pose;
-    }
+  }
+  if (scene.units != "unknown") units = scene.units;
+  cv::Mat real_frame0 = scene.frame0_rgb;
+  std::vector<cv::Mat> ground_truth;
+  if (a.trajectory.empty()) {
+    trajectory = scene.trajectory;
+    for (const std::string& path : scene.frame_image_paths)
+      ground_truth.push_back(ReadImageRgb(path));
+  } else {
+    trajectory = scene.PlaceTrajectory(trajectory);
   }
   GEODRIVE_CHECK_INPUT(!cloud.empty(), input_desc,
                        ": no points (empty cloud or no valid depth)");

@@ -7,7 +7,7 @@
 
 #include "apps/command.h"
 #include "dataset/synthetic_dataset.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

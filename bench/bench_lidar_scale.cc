@@ -9,7 +9,7 @@
 
 #include <filesystem>
 
-#include "dataset/clips.h"
+#include "dataset/drive_dataset.h"
 #include "dataset/lidar_alignment.h"
 #include "dataset/synthetic_dataset.h"
 
@@ -18,8 +18,7 @@ namespace {
 
 struct Fixture {
   std::string root;
-  std::unique_ptr<Nuscenes> nusc;
-  std::vector<int32_t> frames;
+  DriveClip clip;
   std::string clip_id;
 };
 
@@ -35,14 +34,10 @@ Fixture& Get() {
     o.monst3r_depth_noise = 0.03;
     const SyntheticDatasetSummary s = WriteSyntheticDataset(o, x.root);
     x.clip_id = s.monst3r_clip_ids.front();
-    NuscenesOptions no;
-    no.dataroot = x.root;
-    x.nusc = std::make_unique<Nuscenes>(no);
-    ClipOptions co;
-    co.stride = 1;
-    for (const auto& c : SelectClips(*x.nusc, co)) {
-      if (c.id == x.clip_id) x.frames = c.sample_data;
-    }
+    DriveDatasetOptions no;
+    no.root = x.root;
+    no.clip_stride = 1;
+    x.clip = OpenDriveDataset(no)->LoadClip(x.clip_id);
     return x;
   }();
   return f;
@@ -54,7 +49,7 @@ void BM_FitClipLidarScale(benchmark::State& state) {
   double scale = 0;
   int points = 0;
   for (auto _ : state) {
-    const ClipScaleReport r = FitClipLidarScale(*f.nusc, f.frames, folder, {});
+    const ClipScaleReport r = FitClipLidarScale(f.clip, folder, {});
     scale = r.clip_fit.scale;
     points = r.clip_fit.num_points;
     benchmark::DoNotOptimize(scale);

@@ -6,7 +6,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "geometry/memory.h"
+#include "geometry/util/memory.h"
 
 #define GEODRIVE_BENCHMARK_MAIN()                                     \
   int main(int argc, char** argv) {                                   \

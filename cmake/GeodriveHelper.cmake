@@ -1,15 +1,24 @@
-# geodrive_add_library(NAME <target> [SRCS ...] [PUBLIC_LINK_LIBS ...] [PRIVATE_LINK_LIBS ...])
+# geodrive_add_library(NAME <target> [SRCS ...] [PUBLIC_LINK_LIBS ...] [PRIVATE_LINK_LIBS ...]
+#                      [PRIVATE_HEADERS ...])
 #
 # Declares one static library per module folder. Sources default to every *.cc in the folder;
-# headers (*.h, excluding internal/) are installed under include/geodrive/<folder>/. The target is
-# exported as geodrive::<folder> (e.g. geodrive::geometry).
+# headers (*.h, excluding internal/ and PRIVATE_HEADERS) are installed under
+# include/geodrive/<path from the repository root>/ (e.g. geometry/util/). The target is
+# exported as geodrive::<folder> (e.g. geodrive::geometry, geodrive::util). Every installed header
+# is a public header: tests/install checks that each compiles alone and pulls in no PCL, Ceres,
+# nlohmann_json or LibTorch header.
 function(geodrive_add_library)
-  cmake_parse_arguments(ARG "" "NAME" "SRCS;PUBLIC_LINK_LIBS;PRIVATE_LINK_LIBS" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME" "SRCS;PUBLIC_LINK_LIBS;PRIVATE_LINK_LIBS;PRIVATE_HEADERS" ${ARGN})
   get_filename_component(folder ${CMAKE_CURRENT_SOURCE_DIR} NAME)
+  file(RELATIVE_PATH include_subdir ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
   if(NOT ARG_SRCS)
     file(GLOB ARG_SRCS CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cc)
   endif()
   file(GLOB headers CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.h)
+  foreach(h ${ARG_PRIVATE_HEADERS})
+    list(REMOVE_ITEM headers ${CMAKE_CURRENT_SOURCE_DIR}/${h})
+  endforeach()
+  set_property(GLOBAL APPEND PROPERTY GEODRIVE_PUBLIC_HEADERS ${headers})
   add_library(${ARG_NAME} STATIC ${ARG_SRCS})
   add_library(geodrive::${folder} ALIAS ${ARG_NAME})
   set_target_properties(${ARG_NAME} PROPERTIES EXPORT_NAME ${folder})
@@ -22,7 +31,7 @@ function(geodrive_add_library)
   install(TARGETS ${ARG_NAME} EXPORT geodriveTargets
     ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
     LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
-  install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/geodrive/${folder})
+  install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/geodrive/${include_subdir})
 endfunction()
 
 # geodrive_add_test(MODULE <module> [SRCS ...] LINK_LIBS ... [ENVIRONMENT VAR=value])

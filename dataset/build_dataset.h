@@ -19,18 +19,16 @@
 
 namespace geodrive {
 
-enum class GeometrySource { kMonst3r, kLidar };
-std::string ToString(GeometrySource source);
-GeometrySource ParseGeometrySource(const std::string& text);
-
 struct BuildDatasetOptions {
   std::string dataroot;  // nuScenes root (holds <version>/, samples/, sweeps/)
   std::string version = "v1.0-mini";
-  std::string
-      monst3r_root;  // <root>/<clip_id>/ MonST3R folders (geometry monst3r)
+  // ROOT/<clip_id>/ input folders of path-based scene sources (MonST3R
+  // folders for geometry monst3r, depth folders for depth-folder, ...).
+  std::string monst3r_root;
   std::string out;   // output folder
-  // monst3r when monst3r_root is set, lidar otherwise (the default chosen by
-  // Check()).
+  // Scene source name (dataset/scene_source.h: monst3r, lidar, depth-folder,
+  // ...); "auto" = monst3r when monst3r_root is set, lidar otherwise (resolved
+  // by Check()).
   std::string geometry = "auto";
   int threads = 1;  // clips in parallel
   int shard_index = 0, shard_count = 1;

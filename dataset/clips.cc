@@ -5,7 +5,7 @@
 #include <sstream>
 
 #include "dataset/clip_id.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

@@ -6,7 +6,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 
@@ -17,44 +17,26 @@ void LidarScaleOptions::Check() const {
   fit.Check();
 }
 
-int32_t FindLidarSweep(const Nuscenes& nusc,
-                       int32_t cam_sd,
-                       LidarSweepChoice choice,
-                       double max_time_gap_s,
-                       std::string* reason) {
-  const auto& sd = nusc.sample_data()[cam_sd];
-  const int32_t lidar_sensor = nusc.FindSensor("LIDAR_TOP");
-  if (lidar_sensor == kNoIndex) {
-    if (reason) *reason = "dataset has no LIDAR_TOP sensor";
-    return kNoIndex;
+std::optional<size_t> FindLidarSweep(const DriveClip& clip,
+                                     int frame,
+                                     LidarSweepChoice choice,
+                                     double max_time_gap_s,
+                                     std::string* reason) {
+  const DriveFrame& f = clip.frames.at(frame);
+  if (!clip.lidar) {
+    if (reason) *reason = "dataset has no LiDAR (LIDAR_TOP)";
+    return std::nullopt;
   }
-  int32_t best = kNoIndex;
-  if (choice == LidarSweepChoice::kKeyframe) {
-    const auto& sample = nusc.samples()[sd.sample];
-    if (lidar_sensor < static_cast<int32_t>(sample.data.size()))
-      best = sample.data[lidar_sensor];
-  } else {
-    const int32_t scene = nusc.samples()[sd.sample].scene;
-    const auto& chain = nusc.Chain(scene, lidar_sensor);
-    // Chain is ordered by timestamp: binary search for the nearest.
-    auto it = std::lower_bound(chain.begin(), chain.end(), sd.timestamp,
-                               [&](int32_t row, int64_t t) {
-                                 return nusc.sample_data()[row].timestamp < t;
-                               });
-    int64_t best_gap = INT64_MAX;
-    for (auto cand : {it, it == chain.begin() ? chain.end() : it - 1}) {
-      if (cand == chain.end()) continue;
-      const int64_t gap =
-          std::llabs(nusc.sample_data()[*cand].timestamp - sd.timestamp);
-      if (gap < best_gap) best_gap = gap, best = *cand;
-    }
-  }
-  if (best == kNoIndex) {
-    if (reason) *reason = "no LIDAR_TOP sweep in the scene";
-    return kNoIndex;
+  const std::optional<size_t> best = choice == LidarSweepChoice::kKeyframe
+                                         ? f.keyframe_sweep
+                                         : clip.lidar->Nearest(f.timestamp_us);
+  if (!best) {
+    if (reason) *reason = "no LiDAR sweep in the scene";
+    return std::nullopt;
   }
   const double gap =
-      std::abs(nusc.sample_data()[best].timestamp - sd.timestamp) * 1e-6;
+      std::abs(clip.lidar->Sweeps()[*best].timestamp_us - f.timestamp_us) *
+      1e-6;
   if (gap > max_time_gap_s) {
     if (reason) {
       std::ostringstream os;
@@ -62,29 +44,26 @@ int32_t FindLidarSweep(const Nuscenes& nusc,
          << max_time_gap_s * 1e3 << " ms)";
       *reason = os.str();
     }
-    return kNoIndex;
+    return std::nullopt;
   }
   return best;
 }
 
-Trajectory CameraTrajectory(const Nuscenes& nusc,
-                            const std::vector<int32_t>& cam_sds) {
+Trajectory CameraTrajectory(const DriveClip& clip) {
   Trajectory t;
-  for (int32_t sd : cam_sds) {
-    t.Add(nusc.sample_data()[sd].timestamp * 1e-6, nusc.WorldFromSensor(sd));
-  }
+  for (const DriveFrame& f : clip.frames)
+    t.Add(f.timestamp_us * 1e-6, f.world_from_cam);
   return t;
 }
 
-ClipScaleReport FitClipLidarScale(const Nuscenes& nusc,
-                                  const std::vector<int32_t>& cam_sds,
+ClipScaleReport FitClipLidarScale(const DriveClip& clip,
                                   const Monst3rFolder& monst3r,
                                   const LidarScaleOptions& options) {
   options.Check();
-  GEODRIVE_CHECK_INPUT(static_cast<int>(cam_sds.size()) == monst3r.num_frames(),
+  GEODRIVE_CHECK_INPUT(clip.num_frames() == monst3r.num_frames(),
                        monst3r.dir(), ": MonST3R folder has ",
                        monst3r.num_frames(), " frames but the clip has ",
-                       cam_sds.size());
+                       clip.num_frames());
   ClipScaleReport report;
   std::vector<double> all_lidar, all_est;
   Monst3rLoadOptions load;
@@ -94,26 +73,28 @@ ClipScaleReport FitClipLidarScale(const Nuscenes& nusc,
   load.enlarged_dynamic_masks =
       options.skip_dynamic && options.use_enlarged_masks;
   load.reject_all_invalid_confidence = false;
-  for (size_t i = 0; i < cam_sds.size(); ++i) {
+  for (int i = 0; i < clip.num_frames(); ++i) {
     FrameScaleReport fr;
-    fr.frame = static_cast<int>(i);
-    const int32_t cam_sd = cam_sds[i];
+    fr.frame = i;
+    const DriveFrame& cam_frame = clip.frames[i];
     std::string reason;
-    fr.lidar_sd = FindLidarSweep(nusc, cam_sd, options.sweep,
-                                 options.max_time_gap_s, &reason);
-    if (fr.lidar_sd == kNoIndex) {
+    fr.lidar_sweep = FindLidarSweep(clip, i, options.sweep,
+                                    options.max_time_gap_s, &reason);
+    if (!fr.lidar_sweep) {
       fr.skip_reason = reason;
       report.frames.push_back(fr);
       continue;
     }
-    fr.time_gap_s = std::abs(nusc.sample_data()[fr.lidar_sd].timestamp -
-                             nusc.sample_data()[cam_sd].timestamp) *
+    const LidarSweepInfo& sweep = clip.lidar->Sweeps()[*fr.lidar_sweep];
+    fr.time_gap_s = std::abs(sweep.timestamp_us - cam_frame.timestamp_us) *
                     1e-6;
-    const PointCloud cloud = nusc.LoadLidar(fr.lidar_sd);
+    const PointCloud cloud = clip.lidar->Load(*fr.lidar_sweep);
+    const PinholeCamera& cam = cam_frame.camera;
     const LidarProjection proj = MapPointCloudToImage(
-        nusc, cloud.positions, fr.lidar_sd, cam_sd, options.projection);
+        cloud.positions, sweep.ego_from_sensor, sweep.world_from_ego,
+        cam_frame.world_from_ego, cam_frame.ego_from_cam, cam.K(), cam.width,
+        cam.height, options.projection);
     fr.points_in_image = static_cast<int>(proj.size());
-    const PinholeCamera cam = nusc.Camera(cam_sd);
     const ImageResizeSpec spec =
         ComputeMonst3rResizeSpec(cam.width, cam.height, 512);
     GEODRIVE_CHECK_INPUT(
@@ -121,7 +102,7 @@ ClipScaleReport FitClipLidarScale(const Nuscenes& nusc,
         monst3r.dir(), ": MonST3R images are ", monst3r.width(), "x",
         monst3r.height(), " but the camera's ", cam.width, "x", cam.height,
         " maps to ", spec.width, "x", spec.height);
-    const Monst3rFrame frame = monst3r.LoadFrame(static_cast<int>(i), load);
+    const Monst3rFrame frame = monst3r.LoadFrame(i, load);
     const cv::Mat& mask = !options.skip_dynamic ? cv::Mat()
                           : options.use_enlarged_masks
                               ? frame.enlarged_dynamic_mask
@@ -158,7 +139,7 @@ ClipScaleReport FitClipLidarScale(const Nuscenes& nusc,
     return report;
   }
   const double s = report.clip_fit.scale;
-  report.metric_reference = CameraTrajectory(nusc, cam_sds).RelativeToFirst();
+  report.metric_reference = CameraTrajectory(clip).RelativeToFirst();
   report.scaled_monst3r.timestamps = report.metric_reference.timestamps;
   const Rigid3d first_inv =
       monst3r.trajectory().world_from_cam.front().Inverse();
@@ -227,7 +208,7 @@ std::string ClipScaleReportToJson(const ClipScaleReport& r) {
                {"time_gap_s", f.time_gap_s},
                {"points_in_image", f.points_in_image},
                {"points_on_valid_depth", f.samples.size()}};
-    if (f.lidar_sd != kNoIndex) fj["fit"] = fit_json(f.fit);
+    if (f.lidar_sweep) fj["fit"] = fit_json(f.fit);
     frames.push_back(fj);
   }
   j["frames"] = frames;

@@ -2,10 +2,11 @@
 // Metric scale for MonST3R clips from LiDAR, and metric trajectories (issue:
 // LiDAR alignment).
 //
-// For each clip frame i (a camera sample_data, MonST3R frame i), a LiDAR sweep
-// near its timestamp (nearest, or the sample's keyframe sweep, within a maximum
-// time gap) is projected into the camera with the full nuScenes chain (sensor
-// -> ego at lidar time -> global -> ego at camera time -> camera, devkit rules:
+// For each clip frame i (a DriveClip frame, MonST3R frame i), a LiDAR sweep
+// of the clip's LidarProvider near its timestamp (nearest, or the sample's
+// keyframe sweep, within a maximum time gap) is projected into the camera
+// with the full chain (sensor -> ego at lidar time -> world -> ego at camera
+// time -> camera, devkit rules:
 // depth > 1 m, 1 < u < W-1, 1 < v < H-1), its pixels are mapped to the MonST3R
 // image (MonST3R's 512-long-side resize + crop, integer-index pixels), the
 // MonST3R depth is sampled bilinearly there (skipping invalid and dynamic
@@ -16,11 +17,12 @@
 // metres (evo conventions).
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "dataset/nuscenes.h"
-#include "dataset/nuscenes_projection.h"
+#include "dataset/drive_clip.h"
+#include "dataset/lidar_projection.h"
 #include "geometry/alignment.h"
 #include "geometry/depth_scale.h"
 #include "geometry/monst3r.h"
@@ -57,7 +59,8 @@ struct FrameScaleReport {
   int frame = -1;
   bool used = false;
   std::string skip_reason;  // why the frame was skipped (empty when used)
-  int32_t lidar_sd = kNoIndex;
+  // The sweep used (index into the clip LiDAR provider's Sweeps()).
+  std::optional<size_t> lidar_sweep;
   double time_gap_s = 0;
   int points_in_image = 0;  // LiDAR points inside the camera image
   DepthScaleResult fit;
@@ -79,27 +82,24 @@ struct ClipScaleReport {
   std::string BriefReport() const;
 };
 
-// Fits the clip scale. `cam_sds` are the clip's camera sample_data rows, in
-// MonST3R frame order (their count must equal the folder's frame count). Frames
-// without a usable sweep or with too few points are skipped with a reason.
-// Throws InputError for inconsistent inputs.
-ClipScaleReport FitClipLidarScale(const Nuscenes& nusc,
-                                  const std::vector<int32_t>& cam_sds,
+// Fits the clip scale. The clip's frames are the MonST3R frames, in order
+// (their count must equal the folder's frame count). Frames without a usable
+// sweep or with too few points are skipped with a reason. Throws InputError
+// for inconsistent inputs (frame counts, image sizes).
+ClipScaleReport FitClipLidarScale(const DriveClip& clip,
                                   const Monst3rFolder& monst3r,
                                   const LidarScaleOptions& options);
 
-// The LiDAR sweep used for camera sample_data `cam_sd` (kNoIndex and a reason
-// if none).
-int32_t FindLidarSweep(const Nuscenes& nusc,
-                       int32_t cam_sd,
-                       LidarSweepChoice choice,
-                       double max_time_gap_s,
-                       std::string* reason);
+// The LiDAR sweep used for clip frame `frame` (nullopt and a reason if none).
+std::optional<size_t> FindLidarSweep(const DriveClip& clip,
+                                     int frame,
+                                     LidarSweepChoice choice,
+                                     double max_time_gap_s,
+                                     std::string* reason);
 
-// Metric camera trajectory of a list of camera sample_data: world_from_cam =
-// global_from_ego (its own ego pose) * ego_from_cam, timestamps in seconds.
-Trajectory CameraTrajectory(const Nuscenes& nusc,
-                            const std::vector<int32_t>& cam_sds);
+// Metric camera trajectory of the clip: world_from_cam per frame, timestamps
+// in seconds.
+Trajectory CameraTrajectory(const DriveClip& clip);
 
 // Writes the report as JSON (scale, inliers, residual percentiles, per-frame
 // entries, ATE/RPE).

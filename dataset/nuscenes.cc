@@ -12,7 +12,7 @@
 #include <unordered_map>
 
 #include "geometry/point_cloud_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

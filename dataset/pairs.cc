@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 
@@ -43,18 +43,6 @@ std::string ReadText(const std::string& path) {
 }
 
 }  // namespace
-
-std::string StableHash64(const std::string& text) {
-  uint64_t h = 14695981039346656037ull;  // FNV-1a 64 offset basis
-  for (unsigned char c : text) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  char buf[17];
-  std::snprintf(buf, sizeof(buf), "%016llx",
-                static_cast<unsigned long long>(h));
-  return buf;
-}
 
 std::string PairMetaToJson(const PairMeta& m) {
   json j;

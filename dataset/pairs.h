@@ -108,8 +108,5 @@ struct FailureEntry {
 std::string FailureEntryToJson(const FailureEntry& entry);
 std::vector<FailureEntry> ReadFailures(const std::string& path);
 
-// 16 lowercase hex digits of FNV-1a 64 over `text` (stable across platforms and
-// runs).
-std::string StableHash64(const std::string& text);
 
 }  // namespace geodrive

@@ -18,7 +18,7 @@
 #include "dataset/clip_id.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

@@ -5,7 +5,7 @@
 #include <limits>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

@@ -40,11 +40,10 @@
 #include "eval/video_io.h"
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
-#include "geometry/monst3r.h"
 #include "geometry/npy.h"
+#include "dataset/scene_source.h"
 #include "geometry/point_cloud.h"
-#include "geometry/pointmap.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_json.h"
 #include "render/dynamic_edit.h"
@@ -297,56 +296,38 @@ int RunGenerate(const GenerateArgs& a) {
                        "--depth DEPTH.npy");
   const RenderPreset preset = ParseRenderPreset(a.preset);
 
-  // ---- Geometry, first image, trajectory ----
-  PointCloud cloud;
-  PinholeCamera camera;
-  cv::Mat image;
+  // ---- Geometry, first image, trajectory (dataset/scene_source.h) ----
   Trajectory trajectory;
   std::string traj_desc = a.trajectory;
   if (!a.trajectory.empty()) {
     trajectory = ReadTrajectoryAny(a.trajectory);
     trajectory.Check(a.trajectory);
   }
+  SceneInputs in;
+  in.image_path = a.image;
+  std::string source = "monst3r";
   if (!a.geometry.empty()) {
-    const Monst3rFolder folder = Monst3rFolder::Open(a.geometry);
-    Monst3rLoadOptions lo;
-    lo.confidence = lo.dynamic_masks = lo.enlarged_dynamic_masks = false;
-    lo.reject_all_invalid_confidence = false;
-    lo.rgb = folder.has_rgb();
-    const Monst3rFrame f0 = folder.LoadFrame(0, lo);
-    image = a.image.empty() ? f0.rgb : ReadImageRgb(a.image);
-    GEODRIVE_CHECK_INPUT(!image.empty(), a.geometry,
-                         ": frame_0000.png is missing; pass --image");
-    const cv::Mat colours =
-        f0.rgb.empty() || f0.rgb.size() != f0.depth.size()
-            ? ResizeBilinear(image, f0.depth.cols, f0.depth.rows)
-            : f0.rgb;
-    camera = f0.camera;
-    // The released pipeline: frame-0 pointmap, no confidence threshold.
-    cloud = CloudFromDepth(f0.depth, colours, f0.camera, f0.world_from_cam);
-    if (a.trajectory.empty()) {
-      trajectory = folder.trajectory();
-      traj_desc = a.geometry + "/pred_traj.txt";
-    } else {
-      // A user trajectory is taken relative to its first pose, starting at
-      // MonST3R frame 0.
-      trajectory = trajectory.RelativeToFirst();
-      for (auto& pose : trajectory.world_from_cam)
-        pose = f0.world_from_cam * pose;
-    }
+    in.path = a.geometry;
   } else {
     GEODRIVE_CHECK_INPUT(
         !a.image.empty() && !a.intrinsics.empty() && !a.trajectory.empty(),
         "--depth needs --image, --intrinsics and "
         "--trajectory");
-    image = ReadImageRgb(a.image);
-    const cv::Mat depth = ReadDepthNpy(a.depth);
-    GEODRIVE_CHECK_INPUT(depth.size() == image.size(), a.depth, ": depth is ",
-                         depth.cols, "x", depth.rows, " but ", a.image, " is ",
-                         image.cols, "x", image.rows);
-    camera = ReadIntrinsicsFile(a.intrinsics, depth.cols, depth.rows);
-    cloud = CloudFromDepth(depth, image, camera, Rigid3d());
-    trajectory = trajectory.RelativeToFirst();
+    source = "image-depth";
+    in.path = a.depth;
+    in.intrinsics_path = a.intrinsics;
+  }
+  SceneSourceOptions scene_options;
+  scene_options.filter = PointmapFilter::kReleased;  // as the released scripts
+  const ConditionScene scene = BuildConditionScene(source, in, scene_options);
+  const PointCloud& cloud = scene.cloud;
+  const PinholeCamera& camera = scene.camera;
+  const cv::Mat& image = scene.frame0_rgb;
+  if (a.trajectory.empty()) {
+    trajectory = scene.trajectory;
+    traj_desc = a.geometry + "/pred_traj.txt";
+  } else {
+    trajectory = scene.PlaceTrajectory(trajectory);
   }
   GEODRIVE_CHECK_INPUT(!cloud.empty(), "geometry has no valid depth");
   const int frames =

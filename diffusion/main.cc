@@ -13,8 +13,8 @@
 #include "diffusion/sampler.h"
 #include "diffusion/train.h"
 #include "geodrive_version.h"
-#include "geometry/memory.h"
-#include "geometry/status.h"
+#include "geometry/util/memory.h"
+#include "geometry/util/status.h"
 
 namespace geodrive::diffusion {
 // diffusion/generate_command.cc

@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "diffusion/safetensors.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "eval/video_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

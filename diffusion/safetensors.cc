@@ -15,7 +15,7 @@
 #include <set>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

@@ -16,7 +16,7 @@
 #include "diffusion/safetensors.h"
 #include "diffusion/schedule.h"
 #include "diffusion/scheduler.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

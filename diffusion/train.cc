@@ -23,7 +23,7 @@
 #include "diffusion/schedule.h"
 #include "diffusion/vae.h"
 #include "diffusion/vae_config.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

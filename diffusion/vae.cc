@@ -5,7 +5,7 @@
 #include <string>
 #include <unordered_map>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

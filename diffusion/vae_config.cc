@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace diffusion {

@@ -3,7 +3,7 @@
 #ifndef GEODRIVE_WITH_TORCH
 
 #include "eval/deep_metrics.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

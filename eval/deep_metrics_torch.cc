@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "eval/deep_metrics.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

@@ -5,7 +5,7 @@
 #include <sstream>
 
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

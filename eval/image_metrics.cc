@@ -11,7 +11,7 @@
 #include <sstream>
 #include <type_traits>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 // The PSNR sum of squares is compiled three times on x86-64 GCC (x86-64-v4 =
 // AVX-512, x86-64-v3 = AVX2 + FMA, and baseline) and the loader picks the clone

@@ -10,7 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace fs = std::filesystem;
 

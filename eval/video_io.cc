@@ -9,7 +9,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "geometry/image_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace fs = std::filesystem;
 

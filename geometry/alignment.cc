@@ -6,7 +6,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

@@ -4,8 +4,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "geometry/internal/io_util.h"
-#include "geometry/status.h"
+#include "geometry/util/files.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
@@ -96,7 +96,7 @@ bool PngComplete(const std::vector<uint8_t>& b) {
 // unreadable.
 std::vector<uint8_t> ReadImageFile(const std::string& path) {
   std::vector<uint8_t> bytes =
-      internal::ReadFileBytes(path, kMaxImageFileBytes);
+      ReadFileBytes(path, kMaxImageFileBytes);
   if (bytes.empty()) ThrowInputError(path, "empty file (expected an image)");
   if (IsJpeg(bytes) && !ScanJpeg(bytes).complete) {
     ThrowInputError(path, "truncated or corrupt JPEG (no end-of-image marker)");
@@ -159,7 +159,7 @@ void WriteImageRgb(const std::string& path, const cv::Mat& rgb) {
       ThrowInputError(path, "cannot write image of OpenCV type ", rgb.type(),
                       " (expected 8-bit RGB, RGBA or gray, or 16-bit gray)");
   }
-  const std::string name = internal::LowerFileName(path);
+  const std::string name = LowerFileName(path);
   const size_t dot = name.rfind('.');
   if (dot == std::string::npos)
     ThrowInputError(path, "no file extension (expected .png or .jpg)");
@@ -180,11 +180,11 @@ void WriteImageRgb(const std::string& path, const cv::Mat& rgb) {
     ThrowInputError(path, "cannot encode image as ", ext, " (", e.err, ")");
   }
   if (!ok) ThrowInputError(path, "cannot encode image as ", ext);
-  internal::WriteFileAtomically(path, encoded.data(), encoded.size());
+  WriteFileAtomic(path, encoded.data(), encoded.size());
 }
 
 cv::Size ReadImageSize(const std::string& path) {
-  std::vector<uint8_t> head = internal::ReadFileBytes(path, kMaxImageFileBytes);
+  std::vector<uint8_t> head = ReadFileBytes(path, kMaxImageFileBytes);
   if (IsPng(head) && head.size() >= 24 &&
       std::memcmp(&head[12], "IHDR", 4) == 0) {
     auto be32 = [&](size_t o) {

@@ -8,8 +8,8 @@
 #include <memory>
 #include <sstream>
 
-#include "geometry/internal/io_util.h"
-#include "geometry/status.h"
+#include "geometry/util/files.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
@@ -472,16 +472,16 @@ NpyArray NpyArray::Uint8(const std::vector<int64_t>& shape,
 }
 
 NpyHeader ReadNpyHeader(const std::string& path) {
-  const uint64_t file_size = internal::FileSizeOrThrow(path);
+  const uint64_t file_size = FileSizeOrThrow(path);
   std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
-  if (!file) internal::ThrowOpenError(path, errno);
+  if (!file) ThrowOpenError(path, errno);
   return ReadHeader(path, file.get(), file_size);
 }
 
 NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options) {
-  const uint64_t file_size = internal::FileSizeOrThrow(path);
+  const uint64_t file_size = FileSizeOrThrow(path);
   std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
-  if (!file) internal::ThrowOpenError(path, errno);
+  if (!file) ThrowOpenError(path, errno);
   const NpyHeader header = ReadHeader(path, file.get(), file_size);
   const uint64_t nbytes = CheckedByteSize(path, header.shape, header.dtype);
   if (nbytes > options.max_bytes) {
@@ -616,7 +616,7 @@ void WriteNpy(const std::string& path,
   }
   if (options.big_endian == HostIsLittleEndian())
     SwapBytes(data, nbytes / elem, elem);
-  internal::WriteFileAtomically(path, out);
+  WriteFileAtomic(path, out);
 }
 
 }  // namespace geodrive

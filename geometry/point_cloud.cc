@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

@@ -11,9 +11,9 @@
 #include <filesystem>
 #include <sstream>
 
-#include "geometry/internal/io_util.h"
+#include "geometry/util/files.h"
 #include "geometry/internal/pcl_adapter.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
@@ -22,7 +22,7 @@ namespace {
 std::vector<float> ReadFloatRecords(const std::string& path,
                                     size_t floats_per_point,
                                     const char* layout) {
-  const std::vector<uint8_t> bytes = internal::ReadFileBytes(path);
+  const std::vector<uint8_t> bytes = ReadFileBytes(path);
   const size_t record = floats_per_point * sizeof(float);
   if (bytes.size() % record != 0) {
     ThrowInputError(path, "size ", bytes.size(), " bytes is not a multiple of ",
@@ -54,7 +54,7 @@ void WriteFloatRecords(const std::string& path,
     v[3] = cloud.HasIntensity() ? cloud.intensity[i] : 0.f;
     if (with_ring) v[4] = cloud.HasRing() ? cloud.ring[i] : 0.f;
   }
-  internal::WriteFileAtomically(path, values.data(),
+  WriteFileAtomic(path, values.data(),
                                 values.size() * sizeof(float));
 }
 
@@ -63,9 +63,9 @@ void WriteFloatRecords(const std::string& path,
 void CheckStartsWith(const std::string& path,
                      const std::string& magic,
                      const char* kind) {
-  const uint64_t size = internal::FileSizeOrThrow(path);
+  const uint64_t size = FileSizeOrThrow(path);
   std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) internal::ThrowOpenError(path, errno);
+  if (!file) ThrowOpenError(path, errno);
   std::string head(magic.size(), '\0');
   const size_t got = std::fread(&head[0], 1, head.size(), file);
   std::fclose(file);
@@ -79,10 +79,10 @@ void CheckStartsWith(const std::string& path,
 // file: PCL 1.13's PCDReader crashes on some malformed headers instead of
 // returning an error.
 void CheckPcdHeader(const std::string& path) {
-  const uint64_t file_size = internal::FileSizeOrThrow(path);
+  const uint64_t file_size = FileSizeOrThrow(path);
   if (file_size == 0) ThrowInputError(path, "empty file (expected a PCD file)");
   std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) internal::ThrowOpenError(path, errno);
+  if (!file) ThrowOpenError(path, errno);
   std::string head(static_cast<size_t>(std::min<uint64_t>(file_size, 1 << 16)),
                    '\0');
   head.resize(std::fread(&head[0], 1, head.size(), file));
@@ -193,7 +193,7 @@ void CheckPcdHeader(const std::string& path) {
 // failing. (PCL detects short binary bodies.)
 void CheckPly(const std::string& path) {
   CheckStartsWith(path, "ply", "PLY");
-  const std::string text = internal::ReadFileText(path);
+  const std::string text = ReadFileText(path);
   size_t pos = 0;
   int line_no = 0;
   bool ascii = false, have_format = false;
@@ -374,7 +374,7 @@ void WritePly(const std::string& path, const PointCloud& cloud, bool binary) {
       out += line + "\n";
     }
   }
-  internal::WriteFileAtomically(path, out);
+  WriteFileAtomic(path, out);
 }
 
 PointCloud ReadPcd(const std::string& path) {
@@ -399,7 +399,7 @@ PointCloud ReadPcd(const std::string& path) {
 void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
   cloud.Check(path);
   const pcl::PCLPointCloud2 cloud2 = internal::ToPclPointCloud2(cloud);
-  internal::WriteViaTemporary(path, ".pcd", [&](const std::string& tmp) {
+  WriteViaTemporary(path, ".pcd", [&](const std::string& tmp) {
     internal::PclQuietGuard quiet;
     pcl::PCDWriter writer;
     if (cloud.empty()) {
@@ -408,7 +408,7 @@ void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
       std::string header = writer.generateHeaderASCII(
           cloud2, Eigen::Vector4f::Zero(), Eigen::Quaternionf::Identity());
       header += "DATA ascii\n";
-      internal::WriteFileAtomically(tmp, header);
+      WriteFileAtomic(tmp, header);
       return true;
     }
     if (!binary) {
@@ -432,23 +432,23 @@ void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
 }
 
 PointCloud ReadPointCloud(const std::string& path) {
-  const std::string name = internal::LowerFileName(path);
-  if (internal::EndsWith(name, ".ply")) return ReadPly(path);
-  if (internal::EndsWith(name, ".pcd")) return ReadPcd(path);
-  if (internal::EndsWith(name, ".pcd.bin")) return ReadNuscenesLidarBin(path);
-  if (internal::EndsWith(name, ".bin")) return ReadKittiVelodyneBin(path);
+  const std::string name = LowerFileName(path);
+  if (EndsWith(name, ".ply")) return ReadPly(path);
+  if (EndsWith(name, ".pcd")) return ReadPcd(path);
+  if (EndsWith(name, ".pcd.bin")) return ReadNuscenesLidarBin(path);
+  if (EndsWith(name, ".bin")) return ReadKittiVelodyneBin(path);
   ThrowInputError(
       path,
       "unknown point cloud format (expected .ply, .pcd, .pcd.bin or .bin)");
 }
 
 void WritePointCloud(const std::string& path, const PointCloud& cloud) {
-  const std::string name = internal::LowerFileName(path);
-  if (internal::EndsWith(name, ".ply")) return WritePly(path, cloud);
-  if (internal::EndsWith(name, ".pcd")) return WritePcd(path, cloud);
-  if (internal::EndsWith(name, ".pcd.bin"))
+  const std::string name = LowerFileName(path);
+  if (EndsWith(name, ".ply")) return WritePly(path, cloud);
+  if (EndsWith(name, ".pcd")) return WritePcd(path, cloud);
+  if (EndsWith(name, ".pcd.bin"))
     return WriteNuscenesLidarBin(path, cloud);
-  if (internal::EndsWith(name, ".bin"))
+  if (EndsWith(name, ".bin"))
     return WriteKittiVelodyneBin(path, cloud);
   ThrowInputError(
       path,

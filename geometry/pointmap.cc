@@ -10,7 +10,7 @@
 #include <stdexcept>
 
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

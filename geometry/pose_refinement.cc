@@ -11,8 +11,8 @@
 #include <random>
 #include <sstream>
 
-#include "geometry/cost_functions.h"
-#include "geometry/status.h"
+#include "geometry/internal/cost_functions.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

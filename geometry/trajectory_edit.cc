@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

@@ -5,8 +5,8 @@
 #include <cstdio>
 #include <string_view>
 
-#include "geometry/internal/io_util.h"
-#include "geometry/status.h"
+#include "geometry/util/files.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
@@ -67,7 +67,7 @@ struct Row {
 std::vector<Row> ReadRows(const std::string& path,
                           size_t columns,
                           const char* layout) {
-  const std::string text = internal::ReadFileText(path);
+  const std::string text = ReadFileText(path);
   std::vector<Row> rows;
   size_t start = 0;
   int line_no = 0;
@@ -161,7 +161,7 @@ void WriteTrajectory(const std::string& path,
     for (int k = 0; k < 4; ++k) text += " " + PythonFloatRepr(q[k]);
     text += "\n";
   }
-  internal::WriteFileAtomically(path, text);
+  WriteFileAtomic(path, text);
 }
 
 }  // namespace
@@ -216,7 +216,7 @@ void WriteMonst3rIntrinsics(const std::string& path,
     }
     text += "\n";
   }
-  internal::WriteFileAtomically(path, text);
+  WriteFileAtomic(path, text);
 }
 
 }  // namespace geodrive

@@ -6,8 +6,8 @@
 #include <iomanip>
 #include <nlohmann/json.hpp>
 
-#include "geometry/internal/json_fields.h"
-#include "geometry/status.h"
+#include "geometry/util/json_fields.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
 
 namespace geodrive {

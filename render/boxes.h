@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "geometry/box3d.h"
 #include "geometry/camera.h"
 #include "geometry/rigid3.h"
 
@@ -60,30 +61,6 @@ struct Box2d {
   Box2d Clipped(int width, int height) const;
 };
 
-// Oriented 3D box (nuScenes convention, see the file comment).
-struct Box3d {
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();  // world frame
-  Eigen::Vector3d size = Eigen::Vector3d::Zero();    // [w, l, h]
-  Eigen::Quaterniond rotation =
-      Eigen::Quaterniond::Identity();  // world_from_box
-
-  // world_from_box (box frame: x forward = length, y left = width, z up =
-  // height).
-  Rigid3d WorldFromBox() const;
-  // Half extents along the box axes (x, y, z) = (l / 2, w / 2, h / 2).
-  Eigen::Vector3d HalfExtents() const;
-  // True if the world point lies inside the box grown by `margin` (same units)
-  // on every side.
-  bool Contains(const Eigen::Vector3d& point_in_world,
-                double margin = 0.0) const;
-  // The 8 corners in the world frame.
-  std::array<Eigen::Vector3d, 8> Corners() const;
-  bool IsValid() const;  // finite, size > 0, unit quaternion (1e-6)
-};
-
-// Interpolates two boxes: lerp of centre and size, slerp of rotation; t in [0,
-// 1].
-Box3d Interpolate(const Box3d& a, const Box3d& b, double t);
 // Interpolates two 2D boxes coordinate-wise.
 Box2d Interpolate(const Box2d& a, const Box2d& b, double t);
 

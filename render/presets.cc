@@ -3,7 +3,7 @@
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

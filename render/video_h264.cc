@@ -12,7 +12,7 @@ extern "C" {
 #include <memory>
 #include <opencv2/imgproc.hpp>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <limits>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace internal {

@@ -12,11 +12,12 @@
 #include <fstream>
 #include <sstream>
 
-#include "dataset/job.h"
-#include "dataset/nuscenes.h"
+#include "geometry/util/files.h"
+#include "geometry/util/progress.h"
+#include "dataset/drive_dataset.h"
 #include "dataset/pairs.h"
 #include "dataset/synthetic_dataset.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {
@@ -149,20 +150,20 @@ TEST(BuildDataset, ConditionAgreesWithGroundTruthInStaticRegions) {
 // relative camera motion.
 TEST(BuildDataset, MetricPosesWithinOnePercentOfTruth) {
   const std::string out = FullBuild();
-  NuscenesOptions no;
-  no.dataroot = World();
-  const Nuscenes nusc(no);
+  DriveDatasetOptions no;
+  no.root = World();
+  const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(no);
   for (const auto& e : ReadManifest(out + "/manifest.jsonl")) {
     const PairMeta m = ReadPairMeta(out + "/" + e.pair_dir);
     ASSERT_EQ(m.pose_units, "metres");
-    const int32_t sd0 =
-        nusc.Find("sample_data", m.frames.front().sample_data_token);
-    const Rigid3d cam0_from_global = nusc.WorldFromSensor(sd0).Inverse();
+    const DriveClip clip = dataset->LoadClip(m.clip_id);
+    ASSERT_EQ(clip.frames.size(), m.frames.size());
+    const Rigid3d cam0_from_global =
+        clip.frames.front().world_from_cam.Inverse();
     double worst = 0, length = 0;
     for (size_t i = 0; i < m.frames.size(); ++i) {
-      const int32_t sd =
-          nusc.Find("sample_data", m.frames[i].sample_data_token);
-      const Rigid3d truth = cam0_from_global * nusc.WorldFromSensor(sd);
+      ASSERT_EQ(clip.frames[i].frame_id, m.frames[i].sample_data_token);
+      const Rigid3d truth = cam0_from_global * clip.frames[i].world_from_cam;
       length = std::max(length, truth.translation.norm());
       worst = std::max(
           worst, (m.world_from_cam[i].translation - truth.translation).norm());
@@ -212,13 +213,13 @@ TEST(BuildDataset, BadClipsAreIsolatedAndRecorded) {
                         std::ios::binary | std::ios::trunc);
     trunc << "\x93NUMPY";
   }
-  NuscenesOptions no;
-  no.dataroot = root;
+  DriveDatasetOptions no;
+  no.root = root;
   std::string missing;
   {
-    const Nuscenes nusc(no);
-    const auto chain = nusc.Chain(0, "CAM_FRONT");
-    missing = nusc.DataPath(chain[60]);  // only in the clip starting at 48
+    // CAM_FRONT frame 60 of the scene: only in the clip starting at 48.
+    const DriveClip clip = OpenDriveDataset(no)->LoadClip("scene-0001_0048");
+    missing = clip.frames[12].image_path;
   }
   fs::remove(missing);
   const std::string out = test::MakeTempDir("build_bad_out");

@@ -7,7 +7,7 @@
 #include <set>
 
 #include "dataset/clip_id.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/dataset/nuscenes_fixture.h"
 

@@ -11,11 +11,11 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
-#include "dataset/clips.h"
+#include "dataset/drive_dataset.h"
 #include "dataset/synthetic_dataset.h"
 #include "geometry/npy.h"
 #include "geometry/point_cloud_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {
@@ -52,15 +52,12 @@ double TrueMetresPerUnit(const World& w, const std::string& clip_id) {
   return nlohmann::json::parse(in)["metres_per_unit"].get<double>();
 }
 
-std::vector<int32_t> ClipFrames(const Nuscenes& nusc,
-                                const std::string& clip_id) {
-  ClipOptions co;
-  co.stride = 1;
-  for (const auto& c : SelectClips(nusc, co)) {
-    if (c.id == clip_id) return c.sample_data;
-  }
-  ADD_FAILURE() << "clip " << clip_id << " not found";
-  return {};
+// The clip through the nuScenes adapter (every start, so any id resolves).
+DriveClip LoadClip(const std::string& root, const std::string& clip_id) {
+  DriveDatasetOptions o;
+  o.root = root;
+  o.clip_stride = 1;
+  return OpenDriveDataset(o)->LoadClip(clip_id);
 }
 
 // 10 % outlier LiDAR returns: half hit "a vehicle that MonST3R's depth misses"
@@ -115,13 +112,11 @@ const World& NoiseFreeWorld() {
 TEST(LidarAlignmentSynthetic, ExactScaleAndTrajectoryWithoutNoise) {
   const World& w = NoiseFreeWorld();
   ASSERT_FALSE(w.summary.monst3r_clip_ids.empty());
-  NuscenesOptions no;
-  no.dataroot = w.root;
-  const Nuscenes nusc(no);
+  const std::string root = w.root;
   const std::string id = w.summary.monst3r_clip_ids.front();
   const Monst3rFolder folder = Monst3rFolder::Open(w.root + "/monst3r/" + id);
   const ClipScaleReport r =
-      FitClipLidarScale(nusc, ClipFrames(nusc, id), folder, {});
+      FitClipLidarScale(LoadClip(root, id), folder, {});
   ASSERT_TRUE(r.success) << r.message;
   const double truth = TrueMetresPerUnit(w, id);
   const double rel = std::abs(r.clip_fit.scale / truth - 1);
@@ -139,15 +134,13 @@ TEST(LidarAlignmentSynthetic, ExactScaleAndTrajectoryWithoutNoise) {
 TEST(LidarAlignmentSynthetic, ScaleWithin05PercentUnderNoiseAndOutliers) {
   const World w = MakeWorld("lidar_align_noisy", 0.03, 0.05);
   CorruptSweeps(w.root, 5);
-  NuscenesOptions no;
-  no.dataroot = w.root;
-  const Nuscenes nusc(no);
+  const std::string root = w.root;
   for (const std::string& id : w.summary.monst3r_clip_ids) {
     const Monst3rFolder folder = Monst3rFolder::Open(w.root + "/monst3r/" + id);
     LidarScaleOptions options;
     options.alignment = AlignmentType::kSE3;
     const ClipScaleReport r =
-        FitClipLidarScale(nusc, ClipFrames(nusc, id), folder, options);
+        FitClipLidarScale(LoadClip(root, id), folder, options);
     ASSERT_TRUE(r.success) << r.message;
     const double truth = TrueMetresPerUnit(w, id);
     const double rel = std::abs(r.clip_fit.scale / truth - 1);
@@ -167,16 +160,14 @@ TEST(LidarAlignmentSynthetic, ScaleWithin05PercentUnderNoiseAndOutliers) {
 
 TEST(LidarAlignmentSynthetic, FramesWithoutLidarAreSkippedWithReason) {
   const World& w = NoiseFreeWorld();
-  NuscenesOptions no;
-  no.dataroot = w.root;
-  const Nuscenes nusc(no);
+  const std::string root = w.root;
   const std::string id = w.summary.monst3r_clip_ids.front();
   const Monst3rFolder folder = Monst3rFolder::Open(w.root + "/monst3r/" + id);
   LidarScaleOptions options;
   options.max_time_gap_s =
       1e-6;  // no sweep is that close: every frame is skipped
   const ClipScaleReport r =
-      FitClipLidarScale(nusc, ClipFrames(nusc, id), folder, options);
+      FitClipLidarScale(LoadClip(root, id), folder, options);
   EXPECT_FALSE(r.success);
   for (const auto& f : r.frames) {
     EXPECT_FALSE(f.used);
@@ -184,9 +175,9 @@ TEST(LidarAlignmentSynthetic, FramesWithoutLidarAreSkippedWithReason) {
         << f.skip_reason;
   }
   // A clip whose frame count differs from the folder's is rejected.
-  std::vector<int32_t> frames = ClipFrames(nusc, id);
-  frames.pop_back();
-  EXPECT_THROW(FitClipLidarScale(nusc, frames, folder, {}), InputError);
+  DriveClip shorter = LoadClip(root, id);
+  shorter.frames.pop_back();
+  EXPECT_THROW(FitClipLidarScale(shorter, folder, {}), InputError);
 }
 
 // No overlap between LiDAR and valid depth (every MonST3R depth invalid): every
@@ -206,11 +197,9 @@ TEST(LidarAlignmentSynthetic, NoValidDepthIsReportedNotThrown) {
       d[k] = 0.0f;  // MonST3R: depth > 0 valid
     WriteNpy(copy + name, depth);
   }
-  NuscenesOptions no;
-  no.dataroot = w.root;
-  const Nuscenes nusc(no);
-  const ClipScaleReport r = FitClipLidarScale(nusc, ClipFrames(nusc, id),
-                                              Monst3rFolder::Open(copy), {});
+  const std::string root = w.root;
+  const ClipScaleReport r =
+      FitClipLidarScale(LoadClip(root, id), Monst3rFolder::Open(copy), {});
   EXPECT_FALSE(r.success);
   EXPECT_NE(r.message.find("too few valid depth pairs"), std::string::npos)
       << r.message;

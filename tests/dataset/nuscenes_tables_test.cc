@@ -10,7 +10,7 @@
 #include <fstream>
 
 #include "dataset/nuscenes.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/dataset/nuscenes_fixture.h"
 

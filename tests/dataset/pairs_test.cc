@@ -1,4 +1,5 @@
 #include "dataset/pairs.h"
+#include "geometry/util/hash.h"
 
 #include <gtest/gtest.h>
 
@@ -6,8 +7,9 @@
 #include <fstream>
 #include <thread>
 
-#include "dataset/job.h"
-#include "geometry/status.h"
+#include "geometry/util/files.h"
+#include "geometry/util/progress.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -20,7 +20,7 @@
 #include "dataset/clip_id.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

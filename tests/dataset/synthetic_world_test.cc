@@ -10,7 +10,7 @@
 #include <iostream>
 
 #include "dataset/synthetic_dataset.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "diffusion/schedule.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

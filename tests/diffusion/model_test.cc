@@ -15,7 +15,7 @@
 #include "diffusion/safetensors.h"
 #include "diffusion/schedule.h"
 #include "diffusion/scheduler.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

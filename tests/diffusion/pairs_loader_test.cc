@@ -14,7 +14,7 @@
 #include "dataset/build_dataset.h"
 #include "dataset/synthetic_dataset.h"
 #include "eval/video_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -19,7 +19,7 @@
 
 #include "diffusion/config.h"
 #include "diffusion/safetensors.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

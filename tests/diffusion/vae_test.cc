@@ -16,7 +16,7 @@
 #include <sstream>
 
 #include "diffusion/safetensors.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -18,7 +18,7 @@
 #include "eval/frechet.h"
 #include "eval/video_io.h"
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

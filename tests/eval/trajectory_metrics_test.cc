@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -1,4 +1,4 @@
-#include "geometry/cost_functions.h"
+#include "geometry/internal/cost_functions.h"
 
 #include <ceres/numeric_diff_cost_function.h>
 #include <gtest/gtest.h>

@@ -4,7 +4,7 @@
 
 #include <algorithm>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/geometry/synthetic_pointmaps.h"
 

@@ -11,7 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

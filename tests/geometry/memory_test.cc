@@ -1,4 +1,4 @@
-#include "geometry/memory.h"
+#include "geometry/util/memory.h"
 
 #include <gtest/gtest.h>
 #include <sys/resource.h>

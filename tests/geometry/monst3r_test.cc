@@ -9,7 +9,7 @@
 
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/geometry/synthetic_pointmaps.h"
 

@@ -11,7 +11,7 @@
 #include <random>
 
 #include "geometry/npy.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

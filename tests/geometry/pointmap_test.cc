@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/geometry/synthetic_pointmaps.h"
 

@@ -6,7 +6,7 @@
 
 #include "geometry/monst3r.h"
 #include "geometry/pointmap.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/geometry/synthetic_pointmaps.h"
 

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <limits>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_json.h"
 #include "tests/common/test_util.h"
 

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <random>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "geometry/point_cloud.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

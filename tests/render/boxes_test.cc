@@ -6,7 +6,7 @@
 #include <fstream>
 #include <string>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

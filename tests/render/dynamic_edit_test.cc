@@ -11,7 +11,7 @@
 #include <string>
 
 #include "geometry/point_cloud_io.h"
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "geometry/trajectory_json.h"
 #include "tests/common/test_util.h"
 #include "tests/render/edit_test_scene.h"

@@ -7,7 +7,7 @@
 #include <limits>
 #include <tuple>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 #include "render/presets.h"
 #include "tests/common/test_util.h"
 #include "tests/render/render_test_util.h"

@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace internal {

@@ -1,14 +1,16 @@
 #pragma once
-// Small file helpers shared by the geometry I/O code (not installed; internal
-// to geodrive_geometry). Every failure throws InputError naming the file.
+// File helpers shared by every module: reading whole files with a size cap,
+// atomic writes (temporary file in the same folder, fsync, rename: the one
+// implementation the toolkit uses), atomic folder commits, append-only
+// JSON-lines logs. Every failure throws InputError naming the file.
 
 #include <cstdint>
 #include <functional>
+#include <mutex>
 #include <string>
 #include <vector>
 
 namespace geodrive {
-namespace internal {
 
 // "<path>: cannot open (No such file or directory)" style error from the
 // current errno.
@@ -31,15 +33,35 @@ std::string ReadFileText(const std::string& path,
 std::string TemporaryPathFor(const std::string& path,
                              const std::string& keep_suffix = "");
 
-// Writes `bytes` to `path` atomically: a temporary file in the same directory,
-// then rename().
-void WriteFileAtomically(const std::string& path,
-                         const void* bytes,
-                         size_t size);
-inline void WriteFileAtomically(const std::string& path,
-                                const std::string& text) {
-  WriteFileAtomically(path, text.data(), text.size());
+// Writes `bytes` to `path` atomically: a temporary file in the same
+// directory, fsync, then rename(), so readers never see a partial file.
+// Throws InputError naming the path on failure (the temporary is removed).
+void WriteFileAtomic(const std::string& path, const void* bytes, size_t size);
+inline void WriteFileAtomic(const std::string& path,
+                            const std::string& content) {
+  WriteFileAtomic(path, content.data(), content.size());
 }
+
+// Renames a completed temporary folder to its final name (atomic on one
+// filesystem) after fsync-ing its files. Throws InputError if `final_dir`
+// already exists or the rename fails.
+void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir);
+
+// Appends lines to a JSON-lines file; each Append writes one whole line,
+// flushes and fsyncs (thread-safe within a process).
+class JsonlAppender {
+ public:
+  explicit JsonlAppender(const std::string& path);
+  ~JsonlAppender();
+  JsonlAppender(const JsonlAppender&) = delete;
+  JsonlAppender& operator=(const JsonlAppender&) = delete;
+  void Append(const std::string& line);
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  std::mutex mutex_;
+};
 
 // Runs `write_to(temporary_path)` (which returns false or throws on failure)
 // and renames the temporary file to `path`; removes the temporary file on
@@ -52,5 +74,4 @@ void WriteViaTemporary(const std::string& path,
 std::string LowerFileName(const std::string& path);
 bool EndsWith(const std::string& text, const std::string& suffix);
 
-}  // namespace internal
 }  // namespace geodrive

@@ -1,4 +1,4 @@
-#include "dataset/job.h"
+#include "geometry/util/progress.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -12,77 +12,11 @@
 #include <iostream>
 #include <sstream>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 
 namespace fs = std::filesystem;
-
-namespace {
-void FsyncPath(const std::string& path, bool directory) {
-  const int fd =
-      ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
-  if (fd >= 0) {
-    ::fsync(fd);
-    ::close(fd);
-  }
-}
-}  // namespace
-
-void WriteFileAtomic(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  GEODRIVE_CHECK_INPUT(fd >= 0, path, ": cannot write (", std::strerror(errno),
-                       ")");
-  size_t off = 0;
-  while (off < content.size()) {
-    const ssize_t n = ::write(fd, content.data() + off, content.size() - off);
-    if (n < 0) {
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      ThrowInputError(path, "write failed (", std::strerror(err), ")");
-    }
-    off += static_cast<size_t>(n);
-  }
-  ::fsync(fd);
-  ::close(fd);
-  GEODRIVE_CHECK_INPUT(::rename(tmp.c_str(), path.c_str()) == 0, path,
-                       ": rename failed (", std::strerror(errno), ")");
-}
-
-void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir) {
-  GEODRIVE_CHECK_INPUT(!fs::exists(final_dir), final_dir, ": already exists");
-  for (const auto& entry : fs::directory_iterator(tmp_dir)) {
-    if (entry.is_regular_file()) FsyncPath(entry.path().string(), false);
-  }
-  FsyncPath(tmp_dir, true);
-  GEODRIVE_CHECK_INPUT(::rename(tmp_dir.c_str(), final_dir.c_str()) == 0,
-                       final_dir, ": rename from ", tmp_dir, " failed (",
-                       std::strerror(errno), ")");
-  FsyncPath(fs::path(final_dir).parent_path().string(), true);
-}
-
-JsonlAppender::JsonlAppender(const std::string& path) : path_(path) {
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  GEODRIVE_CHECK_INPUT(fd_ >= 0, path, ": cannot open for appending (",
-                       std::strerror(errno), ")");
-}
-
-JsonlAppender::~JsonlAppender() {
-  if (fd_ >= 0) ::close(fd_);
-}
-
-void JsonlAppender::Append(const std::string& line) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const std::string text = line + "\n";
-  // O_APPEND + one write per line keeps lines whole even with several processes
-  // appending.
-  const ssize_t n = ::write(fd_, text.data(), text.size());
-  GEODRIVE_CHECK_INPUT(n == static_cast<ssize_t>(text.size()), path_,
-                       ": append failed (", std::strerror(errno), ")");
-  ::fsync(fd_);
-}
 
 ProgressReporter::ProgressReporter(const std::string& label,
                                    size_t total,

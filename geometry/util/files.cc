@@ -1,5 +1,6 @@
-#include "geometry/internal/io_util.h"
+#include "geometry/util/files.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -12,10 +13,11 @@
 #include <filesystem>
 #include <memory>
 
-#include "geometry/status.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
-namespace internal {
+
+namespace fs = std::filesystem;
 namespace {
 
 struct FileCloser {
@@ -94,28 +96,6 @@ void WriteViaTemporary(
   }
 }
 
-void WriteFileAtomically(const std::string& path,
-                         const void* bytes,
-                         size_t size) {
-  const std::string tmp = TemporaryPathFor(path);
-  FilePtr file(std::fopen(tmp.c_str(), "wb"));
-  if (!file) ThrowInputError(path, "cannot write (", std::strerror(errno), ")");
-  bool ok = size == 0 || std::fwrite(bytes, 1, size, file.get()) == size;
-  ok = std::fflush(file.get()) == 0 && ok;
-  const int err = errno;
-  ok = std::fclose(file.release()) == 0 && ok;
-  if (!ok) {
-    std::remove(tmp.c_str());
-    ThrowInputError(path, "cannot write (", std::strerror(err ? err : EIO),
-                    ")");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int rename_err = errno;
-    std::remove(tmp.c_str());
-    ThrowInputError(path, "cannot write (", std::strerror(rename_err), ")");
-  }
-}
-
 std::string LowerFileName(const std::string& path) {
   std::string name = std::filesystem::path(path).filename().string();
   std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) {
@@ -129,5 +109,79 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
          text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-}  // namespace internal
+namespace {
+void FsyncPath(const std::string& path, bool directory) {
+  const int fd =
+      ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+}  // namespace
+
+void WriteFileAtomic(const std::string& path, const void* bytes, size_t size) {
+  const std::string tmp = TemporaryPathFor(path);
+  const char* data = static_cast<const char*>(bytes);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  GEODRIVE_CHECK_INPUT(fd >= 0, path, ": cannot write (", std::strerror(errno),
+                       ")");
+  size_t off = 0;
+  while (off < size) {
+    const ssize_t n = ::write(fd, data + off, size - off);
+    if (n < 0) {
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      ThrowInputError(path, "write failed (", std::strerror(err), ")");
+    }
+    off += static_cast<size_t>(n);
+  }
+  const bool synced = ::fsync(fd) == 0 || errno == EINVAL;  // EINVAL: pipes
+  const int sync_err = errno;
+  if (::close(fd) != 0 || !synced) {
+    const int err = synced ? errno : sync_err;
+    ::unlink(tmp.c_str());
+    ThrowInputError(path, "write failed (", std::strerror(err), ")");
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    ThrowInputError(path, "rename failed (", std::strerror(err), ")");
+  }
+}
+
+void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir) {
+  GEODRIVE_CHECK_INPUT(!fs::exists(final_dir), final_dir, ": already exists");
+  for (const auto& entry : fs::directory_iterator(tmp_dir)) {
+    if (entry.is_regular_file()) FsyncPath(entry.path().string(), false);
+  }
+  FsyncPath(tmp_dir, true);
+  GEODRIVE_CHECK_INPUT(::rename(tmp_dir.c_str(), final_dir.c_str()) == 0,
+                       final_dir, ": rename from ", tmp_dir, " failed (",
+                       std::strerror(errno), ")");
+  FsyncPath(fs::path(final_dir).parent_path().string(), true);
+}
+
+JsonlAppender::JsonlAppender(const std::string& path) : path_(path) {
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  GEODRIVE_CHECK_INPUT(fd_ >= 0, path, ": cannot open for appending (",
+                       std::strerror(errno), ")");
+}
+
+JsonlAppender::~JsonlAppender() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void JsonlAppender::Append(const std::string& line) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::string text = line + "\n";
+  // O_APPEND + one write per line keeps lines whole even with several processes
+  // appending.
+  const ssize_t n = ::write(fd_, text.data(), text.size());
+  GEODRIVE_CHECK_INPUT(n == static_cast<ssize_t>(text.size()), path_,
+                       ": append failed (", std::strerror(errno), ")");
+  ::fsync(fd_);
+}
+
 }  // namespace geodrive

@@ -1,4 +1,4 @@
-#include "geometry/memory.h"
+#include "geometry/util/memory.h"
 
 #include <cstdlib>
 #include <cstring>

@@ -1,0 +1,62 @@
+#pragma once
+// DriveDataset: a driving dataset as a list of clips (dataset/drive_clip.h).
+// One implementation per dataset format, one factory (OpenDriveDataset); only
+// the adapter knows the dataset's tables. Adding a dataset: a new
+// `dataset/<name>_adapter.cc` implementing DriveDataset, an enum value in
+// DatasetFormat and one case in OpenDriveDataset (docs/ARCHITECTURE.md).
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dataset/drive_clip.h"
+
+namespace geodrive {
+
+enum class DatasetFormat {
+  kNuscenes,  // nuScenes tables (v1.0-*), samples/ and sweeps/
+};
+std::string ToString(DatasetFormat format);
+// "nuscenes"; throws InputError naming the accepted values otherwise.
+DatasetFormat ParseDatasetFormat(const std::string& text);
+
+struct DriveDatasetOptions {
+  // Dataset format.
+  DatasetFormat format = DatasetFormat::kNuscenes;
+  // Dataset root (nuScenes: the folder holding <version>/, samples/, sweeps/).
+  std::string root;
+  // Table version (nuScenes: v1.0-mini, v1.0-trainval, ...).
+  std::string version = "v1.0-mini";
+  // Camera channel whose frames make the clips.
+  std::string channel = "CAM_FRONT";
+  // Frames per clip.
+  int clip_frames = 25;
+  // Source frames between consecutive clip starts (6 = one keyframe interval
+  // of nuScenes' 12 Hz camera).
+  int clip_stride = 6;
+  // True if the options are usable (root set, clip_frames >= 2, stride >= 1).
+  bool Check() const;
+};
+
+class DriveDataset {
+ public:
+  virtual ~DriveDataset() = default;
+  // One line: format, version, root, scene and clip counts.
+  virtual std::string Describe() const = 0;
+  // Clip ids in dataset order (scene, then start frame).
+  virtual const std::vector<std::string>& ClipIds() const = 0;
+  // True if the dataset has a LiDAR (clips then carry a LidarProvider).
+  virtual bool HasLidar() const = 0;
+  // The clip `id`: frames, poses, cameras, boxes, LiDAR provider (metadata
+  // only: images and sweeps are read when used). The clip may be used after
+  // the dataset is destroyed. Throws InputError for an unknown id or
+  // inconsistent tables (naming the table and record).
+  virtual DriveClip LoadClip(const std::string& id) const = 0;
+};
+
+// Opens a dataset (reads its tables). Throws InputError naming the file and
+// the problem.
+std::unique_ptr<DriveDataset> OpenDriveDataset(
+    const DriveDatasetOptions& options);
+
+}  // namespace geodrive

@@ -1,0 +1,84 @@
+#pragma once
+// One clip -> one pair folder, the steps of `build-dataset` (internal to
+// geodrive_dataset): load the clip, read its frames, build its scene, collect
+// its boxes, render the condition, write the folder. Each step is a function
+// so that BuildPair reads as the recipe.
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "dataset/build_dataset.h"
+#include "dataset/drive_dataset.h"
+#include "dataset/pairs.h"
+#include "dataset/scene_source.h"
+#include "render/boxes.h"
+
+namespace geodrive {
+namespace internal {
+
+// A failure inside one clip, tagged with the stage it happened in.
+struct StageError : std::runtime_error {
+  StageError(std::string s, const std::string& what)
+      : std::runtime_error(what), stage(std::move(s)) {}
+  std::string stage;
+};
+
+// What every clip of a run shares.
+struct ClipContext {
+  const DriveDataset* dataset = nullptr;
+  const BuildDatasetOptions* options = nullptr;
+};
+
+// The clip's images: at source size (for sources that colour from them) and
+// at the output size (the ground truth).
+struct ClipFrames {
+  std::vector<cv::Mat> full;
+  std::vector<cv::Mat> gt;
+};
+
+// The condition frames at the output size, with their per-frame quality.
+struct ConditionRender {
+  std::vector<cv::Mat> frames;
+  std::vector<double> coverage;
+  std::vector<double> psnr_static;
+};
+
+// Reads and resizes the clip's images (checking them against the camera).
+ClipFrames ReadClipFrames(const DriveClip& clip,
+                          const BuildDatasetOptions& options);
+// The clip's scene from the run's scene source (ROOT/<clip id> for sources
+// that read a path).
+ConditionScene BuildClipScene(const DriveClip& clip,
+                              const std::vector<cv::Mat>& images,
+                              const BuildDatasetOptions& options);
+// Vehicle boxes of the clip: 3D in camera 0's frame (metric scenes only), 2D at
+// the output size from the dataset's own camera poses.
+BoxSequences ClipVehicleBoxes(const DriveClip& clip,
+                              bool metric,
+                              const BuildDatasetOptions& options);
+// Renders the scene along its trajectory with dynamic edits from `boxes`.
+ConditionRender RenderCondition(const ConditionScene& scene,
+                                const BoxSequences& boxes,
+                                const std::vector<cv::Mat>& gt,
+                                const BuildDatasetOptions& options);
+// The pair's metadata (files and quality are filled by the writer).
+PairMeta MakePairMeta(const DriveClip& clip,
+                      const ConditionScene& scene,
+                      const BuildDatasetOptions& options);
+// Encodes the videos and writes the pair folder into `dir`; fills meta.files.
+void WritePairFolder(const std::string& dir,
+                     const ClipFrames& frames,
+                     const ConditionRender& cond,
+                     const BoxSequences& boxes,
+                     const BuildDatasetOptions& options,
+                     PairMeta* meta);
+
+// Builds one pair into `tmp_dir`; returns its meta. Throws StageError.
+PairMeta BuildPair(const ClipContext& ctx,
+                   const std::string& clip_id,
+                   const std::string& tmp_dir,
+                   std::map<std::string, double>* stage_seconds);
+
+}  // namespace internal
+}  // namespace geodrive

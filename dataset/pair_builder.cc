@@ -1,0 +1,366 @@
+// The steps of one pair (dataset/internal/pair_builder.h): clip -> frames ->
+// scene -> boxes -> condition render -> pair folder.
+
+#include "dataset/internal/pair_builder.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+
+#include "geodrive_version.h"
+#include "geometry/image_io.h"
+#include "geometry/util/files.h"
+#include "geometry/util/hash.h"
+#include "geometry/util/status.h"
+#include "render/dynamic_edit.h"
+#include "render/presets.h"
+#include "render/renderer.h"
+#include "render/video.h"
+#include "render/video_h264.h"
+
+namespace geodrive {
+namespace internal {
+namespace {
+
+// Times each stage into a map; tags exceptions with the stage.
+class StageTimer {
+ public:
+  explicit StageTimer(std::map<std::string, double>* sink) : sink_(sink) {}
+  template <typename F>
+  auto Run(const std::string& stage, F&& f) -> decltype(f()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    try {
+      if constexpr (std::is_void_v<decltype(f())>) {
+        f();
+        Add(stage, t0);
+      } else {
+        auto result = f();
+        Add(stage, t0);
+        return result;
+      }
+    } catch (const StageError&) {
+      Add(stage, t0);
+      throw;
+    } catch (const std::exception& e) {
+      Add(stage, t0);
+      throw StageError(stage, e.what());
+    }
+  }
+
+ private:
+  void Add(const std::string& stage, std::chrono::steady_clock::time_point t0) {
+    (*sink_)[stage] +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+            .count();
+  }
+  std::map<std::string, double>* sink_;
+};
+
+cv::Mat ResizeToOutput(const cv::Mat& rgb, const ImageResizeSpec& spec) {
+  cv::Mat resized;
+  const bool down = spec.resized_width < rgb.cols;
+  cv::resize(rgb, resized, cv::Size(spec.resized_width, spec.resized_height), 0,
+             0, down ? cv::INTER_AREA : cv::INTER_LINEAR);
+  return resized(
+             cv::Rect(spec.crop_left, spec.crop_top, spec.width, spec.height))
+      .clone();
+}
+
+bool IsVehicle(const std::string& category) {
+  return category.rfind("vehicle.", 0) == 0;
+}
+
+// PSNR (dB, data range 255) over the pixels where mask != 0; NaN if none.
+double MaskedPsnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  double se = 0;
+  int64_t n = 0;
+  for (int y = 0; y < a.rows; ++y) {
+    const auto* pa = a.ptr<cv::Vec3b>(y);
+    const auto* pb = b.ptr<cv::Vec3b>(y);
+    const auto* pm = mask.ptr<uint8_t>(y);
+    for (int x = 0; x < a.cols; ++x) {
+      if (!pm[x]) continue;
+      for (int c = 0; c < 3; ++c) {
+        const double d = static_cast<double>(pa[x][c]) - pb[x][c];
+        se += d * d;
+      }
+      n += 3;
+    }
+  }
+  if (n == 0) return std::nan("");
+  const double mse = se / n;
+  return mse <= 0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+ImageResizeSpec OutputSpec(const PinholeCamera& cam,
+                           const BuildDatasetOptions& opt) {
+  return ComputeResizeSpec(cam.width, cam.height, opt.width, opt.height,
+                           ParseResizeMode(opt.resize_mode));
+}
+
+// Static-region agreement with GT: rendered pixels outside every vehicle (box
+// grown 4 px).
+double StaticPsnr(const cv::Mat& cond,
+                  const cv::Mat& gt,
+                  const cv::Mat& render_mask,
+                  const BoxSequences& boxes,
+                  int frame,
+                  const BuildDatasetOptions& opt) {
+  cv::Mat mask;
+  if (render_mask.size() == cond.size()) {
+    mask = render_mask.clone();
+  } else {
+    cv::resize(render_mask, mask, cond.size(), 0, 0, cv::INTER_NEAREST);
+  }
+  for (const auto& seq : boxes.instances) {
+    const BoxFrame* bf = seq.Find(frame);
+    if (!bf || !bf->box_2d) continue;
+    const Box2d b = bf->box_2d->Clipped(opt.width, opt.height);
+    if (b.Area() <= 0) continue;
+    cv::rectangle(mask,
+                  cv::Rect(cv::Point(static_cast<int>(b.xmin) - 4,
+                                     static_cast<int>(b.ymin) - 4),
+                           cv::Point(static_cast<int>(b.xmax) + 5,
+                                     static_cast<int>(b.ymax) + 5)),
+                  cv::Scalar(0), cv::FILLED);
+  }
+  return MaskedPsnr(cond, gt, mask);
+}
+
+}  // namespace
+
+ClipFrames ReadClipFrames(const DriveClip& clip,
+                          const BuildDatasetOptions& opt) {
+  GEODRIVE_CHECK_INPUT(!clip.frames.empty(), clip.id, ": clip has no frames");
+  const PinholeCamera& cam = clip.frames.front().camera;
+  const ImageResizeSpec spec = OutputSpec(cam, opt);
+  const int n = clip.num_frames();
+  ClipFrames out;
+  out.full.resize(n);
+  out.gt.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const std::string& path = clip.frames[i].image_path;
+    out.full[i] = ReadImageRgb(path);
+    GEODRIVE_CHECK_INPUT(
+        out.full[i].cols == cam.width && out.full[i].rows == cam.height, path,
+        ": image is ", out.full[i].cols, "x", out.full[i].rows,
+        " but the dataset says ", cam.width, "x", cam.height);
+    out.gt[i] = ResizeToOutput(out.full[i], spec);
+  }
+  return out;
+}
+
+ConditionScene BuildClipScene(const DriveClip& clip,
+                              const std::vector<cv::Mat>& images,
+                              const BuildDatasetOptions& opt) {
+  const std::unique_ptr<SceneSource> source = CreateSceneSource(opt.geometry);
+  SceneInputs in;
+  in.clip = &clip;
+  in.clip_images = &images;
+  if (source->Traits().needs_path) in.path = opt.monst3r_root + "/" + clip.id;
+  SceneSourceOptions so;
+  so.filter = PointmapFilter::kPaper;
+  so.min_confidence = opt.min_confidence;
+  so.min_depth_m = opt.min_depth_m;
+  so.max_depth_m = opt.max_depth_m;
+  so.lidar_window_before_s = opt.lidar_window_before_s;
+  so.lidar_window_after_s = opt.lidar_window_after_s;
+  ConditionScene scene = source->Build(in, so);
+  GEODRIVE_CHECK_INPUT(scene.trajectory.size() == clip.frames.size(), clip.id,
+                       ": scene source ", opt.geometry, " gave ",
+                       scene.trajectory.size(), " poses for ",
+                       clip.frames.size(), " frames");
+  return scene;
+}
+
+BoxSequences ClipVehicleBoxes(const DriveClip& clip,
+                              bool metric,
+                              const BuildDatasetOptions& opt) {
+  const int n = clip.num_frames();
+  BoxSequences boxes;
+  boxes.image_width = opt.width;
+  boxes.image_height = opt.height;
+  boxes.num_frames = n;
+  boxes.units = metric ? "metres" : "monst3r";
+  const Rigid3d cam0_from_world = clip.frames.front().world_from_cam.Inverse();
+  const PinholeCamera& cam_full = clip.frames.front().camera;
+  const PinholeCamera true_cam_out =
+      ApplyResizeSpec(cam_full, OutputSpec(cam_full, opt));
+  std::map<std::string, BoxSequence> by_instance;
+  for (int i = 0; i < n; ++i) {
+    const Rigid3d cam_from_world = clip.frames[i].world_from_cam.Inverse();
+    for (const ClipBox& b : clip.frames[i].boxes) {
+      if (b.category.empty() || !IsVehicle(b.category)) continue;
+      const auto box2d =
+          ProjectBox3d(b.box, true_cam_out, cam_from_world, /*near=*/0.1);
+      BoxFrame frame;
+      frame.frame = i;
+      if (box2d) frame.box_2d = box2d;
+      if (metric) frame.box_3d = b.box.Transformed(cam0_from_world);
+      if (!frame.box_2d && !frame.box_3d) continue;
+      BoxSequence& seq = by_instance[b.instance_id];
+      seq.id = b.instance_id;
+      seq.category = b.category;
+      seq.frames.push_back(frame);
+    }
+  }
+  for (auto& [id, seq] : by_instance) boxes.instances.push_back(std::move(seq));
+  boxes.Check("clip boxes");
+  return boxes;
+}
+
+ConditionRender RenderCondition(const ConditionScene& scene,
+                                const BoxSequences& boxes,
+                                const std::vector<cv::Mat>& gt,
+                                const BuildDatasetOptions& opt) {
+  const int n = static_cast<int>(scene.trajectory.size());
+  const RenderPreset preset = ParseRenderPreset(opt.preset);
+  std::vector<Rigid3d> cam_from_cam0(n);
+  for (int i = 0; i < n; ++i)
+    cam_from_cam0[i] = scene.trajectory.world_from_cam[i].Inverse();
+  RenderOptions ro = PresetRenderOptions(preset);
+  PinholeCamera cam_render = scene.CameraAt(opt.width, opt.height,
+                                            ParseResizeMode(opt.resize_mode));
+  if (preset == RenderPreset::kPaper) {
+    ro.width = opt.width;
+    ro.height = opt.height;
+    ro.radius_px = opt.splat_radius_px;
+    if (!scene.metric()) {  // a depth range in metres is meaningless then
+      ro.near = 1e-6;
+      ro.far = std::numeric_limits<double>::infinity();
+    }
+  } else {
+    cam_render = ResizeCamera(cam_render, ro.width, ro.height);
+  }
+  ro.num_threads = opt.threads > 1 ? 1 : 0;
+  RenderResult result;
+  if (opt.edit_mode == "none" || boxes.instances.empty()) {
+    result = RenderFrames(scene.cloud, {cam_render}, cam_from_cam0, ro);
+  } else {
+    DynamicEditOptions eo;
+    eo.mode = ParseEditMode(opt.edit_mode);
+    eo.frame0_image = gt.front();
+    if (!scene.dynamic_mask.empty()) eo.dynamic_mask = scene.dynamic_mask;
+    eo.num_threads = ro.num_threads;
+    if (!scene.metric()) eo.box_margin = 0.0;
+    DynamicEditResult edited = RenderWithDynamicEdits(
+        scene.cloud, {cam_render}, cam_from_cam0, boxes, {}, eo, ro);
+    result.frames = std::move(edited.frames);
+  }
+  ConditionRender out;
+  for (int i = 0; i < n; ++i) out.coverage.push_back(result.frames[i].coverage());
+  out.frames = FinalFrames(
+      result, preset,
+      preset == RenderPreset::kGeodriveCompat ? gt.front() : cv::Mat());
+  for (auto& f : out.frames) {
+    if (f.cols != opt.width || f.rows != opt.height) {
+      cv::Mat r;
+      cv::resize(f, r, cv::Size(opt.width, opt.height), 0, 0, cv::INTER_AREA);
+      f = r;
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    out.psnr_static.push_back(StaticPsnr(out.frames[i], gt[i],
+                                         result.frames[i].mask, boxes, i, opt));
+  }
+  return out;
+}
+
+PairMeta MakePairMeta(const DriveClip& clip,
+                      const ConditionScene& scene,
+                      const BuildDatasetOptions& opt) {
+  PairMeta meta;
+  meta.clip_id = clip.id;
+  meta.scene_name = clip.scene_name;
+  meta.scene_token = clip.scene_id;
+  for (const DriveFrame& f : clip.frames)
+    meta.frames.push_back({f.frame_id, f.timestamp_us, f.relative_path});
+  meta.fps = opt.fps;
+  meta.resize_mode = opt.resize_mode;
+  meta.geometry_source = opt.geometry;
+  meta.preset = opt.preset;
+  meta.edit_mode = opt.edit_mode;
+  meta.options_json = opt.ContentOptionsJson();
+  meta.options_hash = StableHash64(meta.options_json);
+  meta.tool_version = GEODRIVE_VERSION;
+  meta.scale = scene.scale.scale;
+  meta.scale_source = scene.scale.source;
+  meta.scale_report = scene.scale.report;
+  if (scene.scale.inlier_fraction)
+    meta.quality.scale_inlier_fraction = *scene.scale.inlier_fraction;
+  meta.pose_units = scene.metric() ? "metres" : "monst3r";
+  meta.world_from_cam = scene.trajectory.world_from_cam;
+  meta.intrinsics = scene.CameraAt(opt.width, opt.height,
+                                   ParseResizeMode(opt.resize_mode));
+  return meta;
+}
+
+void WritePairFolder(const std::string& dir,
+                     const ClipFrames& frames,
+                     const ConditionRender& cond,
+                     const BoxSequences& boxes,
+                     const BuildDatasetOptions& opt,
+                     PairMeta* meta) {
+  const std::vector<cv::Mat>& gt = frames.gt;
+  meta->quality.coverage = cond.coverage;
+  meta->quality.psnr_static = cond.psnr_static;
+  H264Options vo;
+  vo.fps = opt.fps;
+  vo.preset = opt.video_preset;
+  vo.crf = opt.video_crf;
+  WriteH264Mp4(dir + "/gt.mp4", gt, vo);
+  WriteH264Mp4(dir + "/cond.mp4", cond.frames, vo);
+  if (opt.lossless_frames) {
+    WritePngSequence(dir + "/gt_frames", "frame_", gt);
+    WritePngSequence(dir + "/cond_frames", "frame_", cond.frames);
+    meta->files["gt_frames"] = "gt_frames";
+    meta->files["cond_frames"] = "cond_frames";
+  }
+  WriteImageRgb(dir + "/first_frame.png", gt.front());
+  ContactSheetOptions co;
+  co.columns = 9;
+  co.thumb_width = 160;
+  std::vector<cv::Mat> gt_sel, cond_sel;
+  for (size_t i = 0; i < gt.size(); i += 3)
+    gt_sel.push_back(gt[i]), cond_sel.push_back(cond.frames[i]);
+  WriteImageRgb(dir + "/preview.png", MakeContactSheet(cond_sel, gt_sel, co));
+  WriteBoxesJson(dir + "/boxes.json", boxes);
+  meta->files["gt"] = "gt.mp4";
+  meta->files["cond"] = "cond.mp4";
+  meta->files["first_frame"] = "first_frame.png";
+  meta->files["preview"] = "preview.png";
+  meta->files["boxes"] = "boxes.json";
+  meta->files["meta"] = "meta.json";
+  WriteFileAtomic(dir + "/meta.json", PairMetaToJson(*meta));
+}
+
+PairMeta BuildPair(const ClipContext& ctx,
+                   const std::string& clip_id,
+                   const std::string& tmp_dir,
+                   std::map<std::string, double>* stage_seconds) {
+  const BuildDatasetOptions& opt = *ctx.options;
+  StageTimer timer(stage_seconds);
+  const DriveClip clip =
+      timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
+  const ClipFrames frames =
+      timer.Run("gt", [&] { return ReadClipFrames(clip, opt); });
+  const ConditionScene scene = timer.Run(
+      "geometry", [&] { return BuildClipScene(clip, frames.full, opt); });
+  for (const auto& [step, s] : scene.seconds) {  // e.g. the LiDAR scale fit
+    (*stage_seconds)[step] += s;
+    (*stage_seconds)["geometry"] -= s;
+  }
+  const BoxSequences boxes = timer.Run(
+      "boxes", [&] { return ClipVehicleBoxes(clip, scene.metric(), opt); });
+  const ConditionRender cond = timer.Run(
+      "render", [&] { return RenderCondition(scene, boxes, frames.gt, opt); });
+  PairMeta meta = MakePairMeta(clip, scene, opt);
+  timer.Run("encode", [&] {
+    WritePairFolder(tmp_dir, frames, cond, boxes, opt, &meta);
+  });
+  return meta;
+}
+
+}  // namespace internal
+}  // namespace geodrive

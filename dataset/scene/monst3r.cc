@@ -1,0 +1,162 @@
+// Scene source "monst3r": a MonST3R output folder (geometry/monst3r.h).
+//
+// kPaper (the data engine, `build-dataset`): frame 0's pointmap filtered by
+// confidence (tau) and depth range, made metric by a robust LiDAR depth fit
+// when the clip has LiDAR (dataset/lidar_alignment.h), expressed in camera
+// 0's frame with every frame's cam0_from_cam. kReleased (`render`,
+// `generate`, as the released scripts): every pixel of frame 0's depth, in
+// MonST3R's world and units, along pred_traj.txt.
+
+#include <chrono>
+#include <limits>
+
+#include "dataset/lidar_alignment.h"
+#include "dataset/scene/define.h"
+#include "geometry/image_io.h"
+#include "geometry/monst3r.h"
+#include "geometry/pointmap.h"
+#include "geometry/util/status.h"
+#include "render/video.h"
+
+namespace geodrive {
+namespace {
+
+// The metric scale of the folder from the clip's LiDAR, or why there is none.
+SceneScale FitScale(const SceneInputs& in,
+                    const SceneSourceOptions& options,
+                    const Monst3rFolder& folder,
+                    std::map<std::string, double>* seconds) {
+  SceneScale scale;
+  if (!in.clip || !in.clip->lidar || !options.lidar_scale) {
+    scale.source = "none";
+    scale.report =
+        "no LiDAR in the dataset: poses and depth stay in MonST3R units";
+    return scale;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const ClipScaleReport report =
+      FitClipLidarScale(*in.clip, folder, LidarScaleOptions());
+  (*seconds)["scale"] +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+          .count();
+  if (report.success) {
+    scale.scale = report.clip_fit.scale;
+    scale.source = "lidar";
+    scale.report = report.BriefReport();
+    scale.inlier_fraction = report.clip_fit.inlier_fraction;
+  } else {
+    scale.source = "none";
+    scale.report = report.message;
+  }
+  return scale;
+}
+
+ConditionScene BuildPaper(const SceneInputs& in,
+                          const SceneSourceOptions& options,
+                          const Monst3rFolder& folder) {
+  const std::string& dir = in.path;
+  ConditionScene scene;
+  scene.scale = FitScale(in, options, folder, &scene.seconds);
+  const bool metric = scene.scale.source == "lidar";
+  const double scale = scene.scale.scale;
+  Monst3rLoadOptions load;
+  load.init_confidence = false;
+  const Monst3rFrame frame0 = folder.LoadFrame(0, load);
+  scene.dynamic_mask = frame0.enlarged_dynamic_mask.empty()
+                           ? frame0.dynamic_mask
+                           : frame0.enlarged_dynamic_mask;
+  scene.frame0_rgb = frame0.rgb;
+  Pointmap pm = BuildPointmap(frame0, scale);
+  PointmapFilterOptions filter;
+  filter.min_confidence = options.min_confidence;
+  filter.min_depth = metric ? options.min_depth_m : 0.0;
+  filter.max_depth =
+      metric ? options.max_depth_m : std::numeric_limits<double>::infinity();
+  // Dynamic objects are kept: the editor handles them.
+  filter.selection = PixelSelection::kAll;
+  const cv::Mat valid = ComputeValidMask(pm, filter);
+  const PointCloud in_world = ExtractPoints(pm, valid);
+  GEODRIVE_CHECK_INPUT(!in_world.empty(), dir,
+                       ": no frame-0 pixel passes the filters");
+  // Everything in camera 0's frame (MonST3R world = its first camera, up to
+  // noise).
+  Rigid3d world_from_cam0 = folder.trajectory().world_from_cam.front();
+  world_from_cam0.translation *= scale;
+  const Rigid3d cam0_from_world = world_from_cam0.Inverse();
+  scene.cloud = in_world;
+  for (auto& p : scene.cloud.positions)
+    p = (cam0_from_world * p.cast<double>()).cast<float>();
+  for (int i = 0; i < folder.num_frames(); ++i) {
+    Rigid3d w = folder.trajectory().world_from_cam[i];
+    w.translation *= scale;
+    scene.trajectory.Add(folder.trajectory().timestamps[i],
+                         cam0_from_world * w);
+  }
+  scene.camera = folder.cameras().front();
+  scene.units = metric ? "metres" : "monst3r";
+  scene.description = "MonST3R " + dir + " frame 0 (paper filters)";
+  return scene;
+}
+
+ConditionScene BuildReleased(const SceneInputs& in,
+                             const Monst3rFolder& folder) {
+  Monst3rLoadOptions lo;
+  lo.confidence = lo.dynamic_masks = lo.enlarged_dynamic_masks = false;
+  lo.reject_all_invalid_confidence = false;
+  lo.rgb = folder.has_rgb();
+  const Monst3rFrame f0 = folder.LoadFrame(0, lo);
+  cv::Mat image = in.image;
+  if (image.empty() && !in.image_path.empty())
+    image = ReadImageRgb(in.image_path);
+  if (image.empty()) image = f0.rgb;
+  GEODRIVE_CHECK_INPUT(!image.empty(), in.path,
+                       ": frame_0000.png is missing (needed for colours; or "
+                       "pass --image)");
+  const cv::Mat colours =
+      f0.rgb.empty() || f0.rgb.size() != f0.depth.size()
+          ? ResizeBilinear(image, f0.depth.cols, f0.depth.rows)
+          : f0.rgb;
+  ConditionScene scene;
+  // The released pipeline: frame-0 pointmap, no confidence threshold.
+  scene.cloud = CloudFromDepth(f0.depth, colours, f0.camera, f0.world_from_cam);
+  scene.trajectory = folder.trajectory();
+  scene.anchor = TrajectoryAnchor::kFirstFrame;
+  scene.scene_from_cam0 = f0.world_from_cam;
+  scene.camera = f0.camera;
+  scene.frame0_rgb = image;
+  if (folder.has_rgb()) {
+    for (int i = 0; i < folder.num_frames(); ++i)
+      scene.frame_image_paths.push_back(folder.RgbPath(i));
+  }
+  scene.units = "monst3r";
+  scene.scale.report = "MonST3R units (no metric scale)";
+  scene.description = "MonST3R " + in.path + " frame 0";
+  return scene;
+}
+
+class Monst3rSceneSource : public SceneSource {
+ public:
+  SceneSourceTraits Traits() const override {
+    return {true, false,
+            "a MonST3R output folder (pred_traj.txt, pred_intrinsics.txt, "
+            "frame_NNNN.npy, conf_N.npy, masks)"};
+  }
+  ConditionScene Build(const SceneInputs& in,
+                       const SceneSourceOptions& options) const override {
+    const Monst3rFolder folder = Monst3rFolder::Open(in.path);
+    if (in.clip && folder.num_frames() != in.clip->num_frames()) {
+      ThrowInputError(in.path, "MonST3R folder has ", folder.num_frames(),
+                      " frames but the clip has ", in.clip->num_frames());
+    }
+    ConditionScene scene = options.filter == PointmapFilter::kPaper
+                               ? BuildPaper(in, options, folder)
+                               : BuildReleased(in, folder);
+    scene.has_camera = true;
+    return scene;
+  }
+};
+
+}  // namespace
+}  // namespace geodrive
+
+GEODRIVE_DEFINE_SCENE_SOURCE(monst3r, geodrive::Monst3rSceneSource)

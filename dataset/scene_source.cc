@@ -1,0 +1,92 @@
+#include "dataset/scene_source.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "geometry/util/status.h"
+
+// Every source's factory, declared from the registry list.
+#define GEODRIVE_SCENE_SOURCE(identifier, name) \
+  std::unique_ptr<::geodrive::SceneSource> CreateSceneSource_##identifier();
+#include "dataset/scene/registry.inc"
+#undef GEODRIVE_SCENE_SOURCE
+
+namespace geodrive {
+namespace {
+
+struct Entry {
+  const char* name;
+  std::unique_ptr<SceneSource> (*create)();
+};
+
+const std::vector<Entry>& Registry() {
+#define GEODRIVE_SCENE_SOURCE(identifier, name) \
+  Entry{name, &::CreateSceneSource_##identifier},
+  static const std::vector<Entry> entries = {
+#include "dataset/scene/registry.inc"
+  };
+#undef GEODRIVE_SCENE_SOURCE
+  return entries;
+}
+
+}  // namespace
+
+PinholeCamera ConditionScene::CameraAt(int width,
+                                       int height,
+                                       ResizeMode mode) const {
+  return ApplyResizeSpec(
+      camera, ComputeResizeSpec(camera.width, camera.height, width, height,
+                                mode));
+}
+
+Trajectory ConditionScene::PlaceTrajectory(const Trajectory& user) const {
+  if (anchor == TrajectoryAnchor::kAbsolute) return user;
+  Trajectory placed = user.RelativeToFirst();
+  const bool identity =
+      scene_from_cam0.rotation.coeffs() == Eigen::Vector4d(0, 0, 0, 1) &&
+      scene_from_cam0.translation == Eigen::Vector3d::Zero();
+  if (identity) return placed;  // keeps the poses bit-exact
+  for (auto& pose : placed.world_from_cam) pose = scene_from_cam0 * pose;
+  return placed;
+}
+
+bool SceneSourceOptions::Check() const {
+  return min_confidence >= 0 && min_confidence <= 1 && min_depth_m >= 0 &&
+         max_depth_m > min_depth_m && std::isfinite(lidar_window_before_s) &&
+         std::isfinite(lidar_window_after_s) && lidar_window_before_s >= 0 &&
+         lidar_window_after_s >= 0;
+}
+
+std::vector<std::string> SceneSourceNames() {
+  std::vector<std::string> names;
+  for (const Entry& e : Registry()) names.push_back(e.name);
+  return names;
+}
+
+std::unique_ptr<SceneSource> CreateSceneSource(const std::string& name) {
+  for (const Entry& e : Registry()) {
+    if (name == e.name) return e.create();
+  }
+  std::ostringstream os;
+  for (const Entry& e : Registry()) os << (os.tellp() > 0 ? ", " : "") << e.name;
+  throw InputError("unknown scene source '" + name + "' (expected one of " +
+                   os.str() + ")");
+}
+
+ConditionScene BuildConditionScene(const std::string& name,
+                                   const SceneInputs& inputs,
+                                   const SceneSourceOptions& options) {
+  const std::unique_ptr<SceneSource> source = CreateSceneSource(name);
+  const SceneSourceTraits traits = source->Traits();
+  GEODRIVE_CHECK_INPUT(options.Check(), "scene source ", name,
+                       ": options out of range (confidence in [0, 1], 0 <= "
+                       "min depth < max depth, LiDAR window >= 0)");
+  GEODRIVE_CHECK_INPUT(!traits.needs_path || !inputs.path.empty(),
+                       "scene source ", name, " needs an input path (",
+                       traits.help, ")");
+  GEODRIVE_CHECK_INPUT(!traits.needs_clip || inputs.clip, "scene source ",
+                       name, " needs a dataset clip (", traits.help, ")");
+  return source->Build(inputs, options);
+}
+
+}  // namespace geodrive
