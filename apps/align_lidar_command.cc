@@ -5,15 +5,15 @@
 #include <iostream>
 #include <memory>
 
-#include "apps/command.h"
+#include "apps/cli/cli.h"
 #include "dataset/drive_dataset.h"
-#include "geometry/util/files.h"
-#include "geometry/util/progress.h"
 #include "dataset/lidar_alignment.h"
 #include "geometry/image_io.h"
 #include "geometry/monst3r.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/files.h"
+#include "geometry/util/progress.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
@@ -44,8 +44,7 @@ int Run(const Args& a) {
                                         : LidarSweepChoice::kNearest;
   options.max_time_gap_s = a.max_gap_ms * 1e-3;
   options.alignment = ParseAlignmentType(a.alignment);
-  const ClipScaleReport report =
-      FitClipLidarScale(clip, folder, options);
+  const ClipScaleReport report = FitClipLidarScale(clip, folder, options);
   std::filesystem::create_directories(a.out);
   WriteFileAtomic(a.out + "/report.json", ClipScaleReportToJson(report));
   // The residual picture of the frame with the most LiDAR samples.

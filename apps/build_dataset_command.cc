@@ -3,10 +3,13 @@
 
 #include <cstdlib>
 #include <iostream>
+#include <map>
 #include <memory>
+#include <vector>
 
-#include "apps/command.h"
+#include "apps/cli/cli.h"
 #include "dataset/build_dataset.h"
+#include "dataset/scene_source.h"
 #include "geometry/util/files.h"
 #include "geometry/util/progress.h"
 #include "geometry/util/status.h"
@@ -41,18 +44,6 @@ void ParseShard(const std::string& text, int* index, int* count) {
   }
 }
 
-void ParseSize(const std::string& text, int* width, int* height) {
-  const auto x = text.find('x');
-  GEODRIVE_CHECK_INPUT(x != std::string::npos,
-                       "--size: expected HxW (e.g. 480x720), got '", text, "'");
-  try {
-    *height = std::stoi(text.substr(0, x));
-    *width = std::stoi(text.substr(x + 1));
-  } catch (const std::exception&) {
-    ThrowInputError("--size", "expected HxW (e.g. 480x720), got '", text, "'");
-  }
-}
-
 bool UnderMpiLauncher() {
   return std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE") ||
          std::getenv("PMIX_RANK");
@@ -67,7 +58,7 @@ int Run(Args& a) {
   }
   BuildDatasetOptions& o = a.options;
   ParseShard(a.shard, &o.shard_index, &o.shard_count);
-  ParseSize(a.size, &o.width, &o.height);
+  ParseSizeHxW(a.size, "--size", &o.height, &o.width);
   if (!a.clips.empty()) {
     std::string cur;
     for (char c : a.clips + ",") {
@@ -129,7 +120,7 @@ int Run(Args& a) {
                 << o.out << "\n";
     }
   }
-  if (interrupted) return 130;
+  if (interrupted) return kExitInterrupted;
   if (failed > 0) {
     if (rank == 0) {
       std::cerr << "build-dataset: completed with failures (see " << o.out
@@ -159,13 +150,25 @@ CommandRunner Setup(CLI::App& app) {
   app.add_option("--version", o.version, "Table folder, e.g. v1.0-mini")
       ->capture_default_str();
   app.add_option("--monst3r", o.monst3r_root,
-                 "Folder of MonST3R outputs, one <clip_id>/ folder per clip");
+                 "Folder of MonST3R outputs: <clip_id>/ or "
+                 "<clip_id>/reconstruction/ per clip, or the upstream "
+                 "sample_%06d/ and <name>/reconstruction/ layouts through "
+                 "--monst3r-map");
+  app.add_option("--monst3r-map", o.monst3r_map,
+                 "Folder names -> clip ids: the clips.jsonl of `geodrive "
+                 "clips` (sample_%06d = its index) or '<folder> <clip id>' "
+                 "lines");
   app.add_option("--out", o.out, "Output folder");
-  app.add_option("--geometry", o.geometry,
-                 "monst3r (default when --monst3r is given) or lidar "
-                 "(aggregated static LiDAR, "
-                 "no MonST3R needed)")
-      ->check(CLI::IsMember({"auto", "monst3r", "lidar"}));
+  std::vector<std::string> sources = SceneSourceNames();
+  std::string source_help =
+      "Scene source: monst3r (default when --monst3r is given; the MonST3R "
+      "folder ROOT/<clip id>/), lidar (aggregated static LiDAR, no "
+      "reconstruction needed; the default otherwise), or another registered "
+      "source reading ROOT/<clip id>/:";
+  for (const std::string& name : sources) source_help += " " + name;
+  sources.push_back("auto");
+  app.add_option("--geometry", o.geometry, source_help)
+      ->check(CLI::IsMember(sources));
   app.add_option("--threads", o.threads, "Clips processed in parallel")
       ->capture_default_str();
   app.add_option("--shard", a->shard,
@@ -173,12 +176,17 @@ CommandRunner Setup(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--preset", o.preset,
                  "paper (z-buffer) or geodrive-compat (released pipeline)")
-      ->check(CLI::IsMember({"paper", "geodrive-compat"}))
-      ->capture_default_str();
+      ->transform(CLI::CheckedTransformer(std::map<std::string, RenderPreset>{
+          {"paper", RenderPreset::kPaper},
+          {"geodrive-compat", RenderPreset::kGeodriveCompat}}))
+      ->default_str("paper");
   app.add_option("--edit-mode", o.edit_mode,
                  "Dynamic editing from the clip's boxes: 3d, 2d, none")
-      ->check(CLI::IsMember({"3d", "2d", "none"}))
-      ->capture_default_str();
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, PairEditMode>{{"3d", PairEditMode::k3d},
+                                              {"2d", PairEditMode::k2d},
+                                              {"none", PairEditMode::kNone}}))
+      ->default_str("3d");
   app.add_option("--clips", a->clips,
                  "Comma-separated clip ids (default: all clips)");
   app.add_option("--max-clips", o.max_clips,
@@ -186,12 +194,25 @@ CommandRunner Setup(CLI::App& app) {
   app.add_option("--stride", o.clip_stride,
                  "CAM_FRONT frames between clip starts")
       ->capture_default_str();
+  app.add_option("--clip-frames", o.clip_frames, "Frames per clip (>= 2)")
+      ->capture_default_str();
+  app.add_option("--frames", o.frames,
+                 "Which CAM_FRONT frames make clips: all (keyframes and "
+                 "sweeps, 12 Hz) or keyframes (2 Hz samples only: for "
+                 "extracts without sweep files; clip ids end in _kf)")
+      ->transform(
+          CLI::CheckedTransformer(std::map<std::string, ClipFrameSource>{
+              {"all", ClipFrameSource::kAll},
+              {"keyframes", ClipFrameSource::kKeyframes}}))
+      ->default_str("all");
   app.add_option("--size", a->size, "Output HxW")->capture_default_str();
   app.add_option("--resize-mode", o.resize_mode,
                  "resize (plain, GeoDrive training) or center-crop (GeoDrive "
                  "inference)")
-      ->check(CLI::IsMember({"resize", "center-crop"}))
-      ->capture_default_str();
+      ->transform(CLI::CheckedTransformer(std::map<std::string, ResizeMode>{
+          {"resize", ResizeMode::kResize},
+          {"center-crop", ResizeMode::kCenterCrop}}))
+      ->default_str("resize");
   app.add_option(
          "--fps", o.fps,
          "Frame rate written in the videos (12 Hz clips as 10 fps, as Vista)")
@@ -211,6 +232,18 @@ CommandRunner Setup(CLI::App& app) {
   app.add_option("--splat-radius", o.splat_radius_px,
                  "Paper preset splat radius (output px)")
       ->capture_default_str();
+  app.add_flag("--refine-poses", o.refine_poses,
+               "MonST3R geometry: refine the poses by reprojection over static "
+               "confident pixels (paper eq. 3); meta.json reports the RMS "
+               "before and after");
+  app.add_option("--export", o.export_format,
+                 "Also write the pairs for another tool: geodrive-upstream "
+                 "(GeoDrive's released train.py: OUT/geodrive_upstream/"
+                 "sample_%06d/render_%d.png and meta.jsonl)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, PairExport>{
+          {"none", PairExport::kNone},
+          {"geodrive-upstream", PairExport::kGeodriveUpstream}}))
+      ->default_str("none");
   app.add_flag("--quiet", o.quiet, "No progress output");
   app.add_option("--merge", a->merge,
                  "Merge the shard outputs in this folder (manifest, failures, "

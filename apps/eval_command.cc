@@ -3,21 +3,23 @@
 // between trajectories; writes report.json + report.csv + report.md +
 // report.png (docs/EVAL.md).
 
+#include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <set>
 #include <sstream>
 
-#include "apps/command.h"
+#include "apps/cli/cli.h"
 #include "eval/deep_metrics.h"
 #include "eval/frechet.h"
 #include "eval/image_metrics.h"
 #include "eval/report.h"
 #include "eval/trajectory_metrics.h"
-#include "eval/video_io.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/status.h"
+#include "render/video/video_io.h"
 
 namespace geodrive {
 namespace {
@@ -93,7 +95,7 @@ FrechetReport Frechet(const char* name,
   }
   const FrechetResult result = FrechetDistance(pred_stats, gt_stats);
   out.distance = result.distance;
-  std::cerr << name << ": " << result.Summary() << "\n";
+  std::cerr << name << ": " << result.BriefReport() << "\n";
   return out;
 }
 
@@ -112,6 +114,60 @@ std::vector<std::string> SplitMetrics(const std::string& text) {
   }
   GEODRIVE_CHECK_INPUT(!out.empty(), "--metrics: no metric given");
   return out;
+}
+
+// ADE/FDE of --pred-traj against --gt-traj, with the aligned centres for the
+// plot.
+void EvaluateTrajectories(const EvalArgs& args, EvalReport* report) {
+  GEODRIVE_CHECK_INPUT(!args.pred_traj.empty() && !args.gt_traj.empty(),
+                       "--pred-traj and --gt-traj are required for ade/fde");
+  auto read = [&](const std::string& path) {
+    return args.traj_format == "monst3r" ? ReadMonst3rTrajectory(path)
+                                         : ReadTumTrajectory(path);
+  };
+  const Trajectory pred = read(args.pred_traj), gt = read(args.gt_traj);
+  TrajectoryErrorOptions options;
+  options.alignment = ParseAlignmentType(args.align);
+  options.units = !args.units.empty()             ? args.units
+                  : args.traj_format == "monst3r" ? "MonST3R units"
+                                                  : "units of the TUM files";
+  TrajectoryErrors errors = ComputeTrajectoryErrors(pred, gt, options);
+  report->gt_centres = CameraCentres(gt);
+  for (const Eigen::Vector3d& c : CameraCentres(pred)) {
+    report->pred_centres_aligned.push_back(errors.gt_from_pred * c);
+  }
+  if (args.x100) errors = errors.Scaled(100.0);
+  std::cerr << "trajectory: " << errors.BriefReport() << "\n";
+  report->trajectory = errors;
+}
+
+// One line per computed metric on stdout.
+void PrintEvalSummary(const EvalReport& report,
+                      const std::function<bool(const char*)>& wants,
+                      bool lpips) {
+  for (const char* m : {"psnr", "ssim", "psnr_y", "ssim_y"}) {
+    if (!wants(m)) continue;
+    const MeanStd s = report.Aggregate(m);
+    std::cout << m << " " << s.mean << " (std " << s.std << ", " << s.count
+              << " videos)\n";
+  }
+  if (lpips) {
+    const MeanStd s = report.Aggregate("lpips");
+    std::cout << "lpips " << s.mean << " (std " << s.std << ", " << s.count
+              << " videos)\n";
+  }
+  for (const auto& [name, f] :
+       {std::pair("fid", &report.fid), {"fvd", &report.fvd}}) {
+    if (!*f) continue;
+    std::cout << name << " " << (*f)->distance << " (" << (*f)->pred_samples
+              << " predicted vs "
+              << ((*f)->gt_samples >= 0
+                      ? std::to_string((*f)->gt_samples) + " ground truth"
+                      : "cached " + (*f)->gt_stats)
+              << ", " << (*f)->dims << "-d)\n";
+  }
+  if (report.trajectory)
+    std::cout << "trajectory " << report.trajectory->BriefReport() << "\n";
 }
 
 int RunEval(const EvalArgs& args) {
@@ -189,7 +245,7 @@ int RunEval(const EvalArgs& args) {
           need_gt ? ReadVideoFrames(pair.gt_path) : std::vector<cv::Mat>();
       if (image) {
         record.scores = CompareVideos(pred, gt, report.frame_options, pair.id);
-        std::cerr << pair.id << ": " << record.scores.Summary() << "\n";
+        std::cerr << pair.id << ": " << record.scores.BriefReport() << "\n";
       }
       if (lpips) {
         GEODRIVE_CHECK_INPUT(pred.size() == gt.size(), pair.id,
@@ -223,54 +279,11 @@ int RunEval(const EvalArgs& args) {
     report.fvd =
         Frechet("fvd", args.fvd_model, args.fvd_stats, fvd_pred, fvd_gt_rows);
   }
-  if (traj) {
-    GEODRIVE_CHECK_INPUT(!args.pred_traj.empty() && !args.gt_traj.empty(),
-                         "--pred-traj and --gt-traj are required for ade/fde");
-    auto read = [&](const std::string& path) {
-      return args.traj_format == "monst3r" ? ReadMonst3rTrajectory(path)
-                                           : ReadTumTrajectory(path);
-    };
-    const Trajectory pred = read(args.pred_traj), gt = read(args.gt_traj);
-    TrajectoryErrorOptions options;
-    options.alignment = ParseAlignmentType(args.align);
-    options.units = !args.units.empty()             ? args.units
-                    : args.traj_format == "monst3r" ? "MonST3R units"
-                                                    : "units of the TUM files";
-    TrajectoryErrors errors = ComputeTrajectoryErrors(pred, gt, options);
-    report.gt_centres = CameraCentres(gt);
-    for (const Eigen::Vector3d& c : CameraCentres(pred)) {
-      report.pred_centres_aligned.push_back(errors.gt_from_pred * c);
-    }
-    if (args.x100) errors = errors.Scaled(100.0);
-    std::cerr << "trajectory: " << errors.Summary() << "\n";
-    report.trajectory = errors;
-  }
+  if (traj) EvaluateTrajectories(args, &report);
   for (const std::string& path : WriteEvalOutputs(report, args.out)) {
     std::cout << "wrote " << path << "\n";
   }
-  for (const char* m : {"psnr", "ssim", "psnr_y", "ssim_y"}) {
-    if (!wants(m)) continue;
-    const MeanStd s = report.Aggregate(m);
-    std::cout << m << " " << s.mean << " (std " << s.std << ", " << s.count
-              << " videos)\n";
-  }
-  if (lpips) {
-    const MeanStd s = report.Aggregate("lpips");
-    std::cout << "lpips " << s.mean << " (std " << s.std << ", " << s.count
-              << " videos)\n";
-  }
-  for (const auto& [name, f] :
-       {std::pair("fid", &report.fid), {"fvd", &report.fvd}}) {
-    if (!*f) continue;
-    std::cout << name << " " << (*f)->distance << " (" << (*f)->pred_samples
-              << " predicted vs "
-              << ((*f)->gt_samples >= 0
-                      ? std::to_string((*f)->gt_samples) + " ground truth"
-                      : "cached " + (*f)->gt_stats)
-              << ", " << (*f)->dims << "-d)\n";
-  }
-  if (report.trajectory)
-    std::cout << "trajectory " << report.trajectory->Summary() << "\n";
+  PrintEvalSummary(report, wants, lpips);
   return kExitOk;
 }
 

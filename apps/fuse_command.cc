@@ -4,7 +4,7 @@
 #include <iostream>
 #include <memory>
 
-#include "apps/command.h"
+#include "apps/cli/cli.h"
 #include "geometry/fusion.h"
 #include "geometry/monst3r.h"
 #include "geometry/point_cloud_io.h"

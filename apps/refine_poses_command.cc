@@ -8,12 +8,12 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
-#include "apps/command.h"
+#include "apps/cli/cli.h"
 #include "geometry/monst3r.h"
 #include "geometry/pointmap.h"
 #include "geometry/pose_refinement.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {

@@ -25,16 +25,17 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
-#include "apps/command.h"
+#include "apps/cli/cli.h"
+#include "apps/cli/edit_args.h"
 #include "dataset/scene_source.h"
 #include "geometry/image_io.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
+#include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
 #include "render/renderer.h"
-#include "render/video.h"
+#include "render/video/video.h"
 
 namespace geodrive {
 namespace {
@@ -60,52 +61,18 @@ struct RenderArgs {
   EditCliArgs dynamic;  // --boxes, --edit-mode, --remove, --insert, --move
 };
 
-// "480x720" = H x W.
-void ParseSize(const std::string& text, int* height, int* width) {
-  const size_t x = text.find('x');
-  GEODRIVE_CHECK_INPUT(x != std::string::npos, "--size '", text,
-                       "': expected HxW, e.g. 480x720");
-  try {
-    size_t p1 = 0, p2 = 0;
-    const long h = std::stol(text.substr(0, x), &p1);
-    const long w = std::stol(text.substr(x + 1), &p2);
-    GEODRIVE_CHECK_INPUT(p1 == x && p2 == text.size() - x - 1, "--size '", text,
-                         "': expected HxW, e.g. 480x720");
-    GEODRIVE_CHECK_INPUT(h >= 1 && w >= 1 && h <= 16384 && w <= 16384,
-                         "--size '", text,
-                         "': height and width must be in 1..16384");
-    *height = static_cast<int>(h);
-    *width = static_cast<int>(w);
-  } catch (const std::logic_error&) {
-    ThrowInputError("--size '" + text + "'", "expected HxW, e.g. 480x720");
-  }
-}
-
 std::string Fixed(double v, int digits) {
   std::ostringstream os;
   os << std::fixed << std::setprecision(digits) << v;
   return os.str();
 }
 
-int RunRender(RenderArgs a) {
-  const int sources = !a.cloud.empty() + !a.image.empty() + !a.monst3r.empty();
-  GEODRIVE_CHECK_INPUT(
-      sources == 1,
-      "give exactly one input: --cloud, --image (with --depth, --intrinsics) "
-      "or --monst3r");
-  if (!a.image.empty()) {
-    GEODRIVE_CHECK_INPUT(
-        !a.depth.empty() && !a.intrinsics.empty(),
-        "--image needs --depth DEPTH.npy and --intrinsics K.txt");
-  }
-  GEODRIVE_CHECK_INPUT(
-      !a.trajectory.empty() || !a.monst3r.empty(),
-      "--trajectory is required (except with --monst3r, which defaults to "
-      "its pred_traj.txt)");
-  const RenderPreset preset = ParseRenderPreset(a.preset);
+// The renderer's options: the preset's, overridden by the flags given.
+RenderOptions RenderOptionsFromArgs(const RenderArgs& a, RenderPreset preset) {
   RenderOptions options = PresetRenderOptions(preset);
   if (!a.mode.empty()) options.mode = ParseRenderMode(a.mode);
-  if (!a.size.empty()) ParseSize(a.size, &options.height, &options.width);
+  if (!a.size.empty())
+    ParseSizeHxW(a.size, "--size", &options.height, &options.width);
   if (a.radius >= 0) {
     if (options.mode == RenderMode::kSoft) {
       options.radius_ndc = a.radius;
@@ -120,22 +87,30 @@ int RunRender(RenderArgs a) {
   options.num_threads = a.threads;
   if (options.mode == RenderMode::kSoft) options.output_float_rgb = true;
   options.Check();
-  a.edits.forward_then_back = a.reverse;
-  a.edits.Check();
+  return options;
+}
 
-  // ---- The scene (dataset/scene_source.h) and the trajectory in its frame
-  PinholeCamera camera;
-  bool have_camera = false;
+// The scene (dataset/scene_source.h) and the trajectory in its frame.
+struct RenderInput {
+  ConditionScene scene;
   Trajectory trajectory;
+  PinholeCamera camera;
   std::string units = "unknown";
+  cv::Mat real_frame0;
+  std::vector<cv::Mat> ground_truth;
+};
+
+RenderInput LoadRenderInput(const RenderArgs& a, const RenderOptions& options) {
+  RenderInput r;
+  bool have_camera = false;
   TrajectoryFileInfo traj_info;
   if (!a.trajectory.empty()) {
-    trajectory = ReadTrajectoryAny(
+    r.trajectory = ReadTrajectoryAny(
         a.trajectory, ParseTrajectoryFormat(a.trajectory_format), &traj_info);
-    trajectory.Check(a.trajectory);
-    units = traj_info.units;
+    r.trajectory.Check(a.trajectory);
+    r.units = traj_info.units;
     if (traj_info.camera) {
-      camera = *traj_info.camera;
+      r.camera = *traj_info.camera;
       have_camera = true;
     }
   }
@@ -160,31 +135,118 @@ int RunRender(RenderArgs a) {
   }
   SceneSourceOptions scene_options;
   scene_options.filter = PointmapFilter::kReleased;  // as the released scripts
-  const ConditionScene scene = BuildConditionScene(source, in, scene_options);
-  const PointCloud& cloud = scene.cloud;
-  const std::string& input_desc = scene.description;
+  r.scene = BuildConditionScene(source, in, scene_options);
+  const ConditionScene& scene = r.scene;
   if (scene.has_camera) {
-    camera = scene.camera;
+    r.camera = scene.camera;
     have_camera = true;
   }
-  if (scene.units != "unknown") units = scene.units;
-  cv::Mat real_frame0 = scene.frame0_rgb;
-  std::vector<cv::Mat> ground_truth;
+  if (scene.units != "unknown") r.units = scene.units;
+  r.real_frame0 = scene.frame0_rgb;
   if (a.trajectory.empty()) {
-    trajectory = scene.trajectory;
+    r.trajectory = scene.trajectory;
     for (const std::string& path : scene.frame_image_paths)
-      ground_truth.push_back(ReadImageRgb(path));
+      r.ground_truth.push_back(ReadImageRgb(path));
   } else {
-    trajectory = scene.PlaceTrajectory(trajectory);
+    r.trajectory = scene.PlaceTrajectory(r.trajectory);
   }
-  GEODRIVE_CHECK_INPUT(!cloud.empty(), input_desc,
+  GEODRIVE_CHECK_INPUT(!scene.cloud.empty(), scene.description,
                        ": no points (empty cloud or no valid depth)");
   GEODRIVE_CHECK_INPUT(
       have_camera, a.trajectory,
       ": no camera intrinsics: with --cloud the "
       "trajectory JSON must hold a \"camera\" (or use --image/--monst3r)");
 
-  const Trajectory edited = ApplyTrajectoryEdits(trajectory, a.edits);
+  return r;
+}
+
+// render.json: inputs, options, camera, per-frame coverage, summary.
+json RenderReport(const RenderArgs& a,
+                  const RenderInput& in,
+                  const Trajectory& edited,
+                  RenderPreset preset,
+                  const RenderOptions& options,
+                  bool frame0_replaced,
+                  const RenderResult& result,
+                  const std::vector<cv::Mat>& frames,
+                  const json& dynamic_edit,
+                  json report) {
+  const PinholeCamera& camera = in.camera;
+  report["input"] = in.scene.description;
+  report["trajectory"] =
+      a.trajectory.empty() ? a.monst3r + "/pred_traj.txt" : a.trajectory;
+  report["units"] = in.units;
+  report["edits"] = a.edits.Describe();
+  if (!dynamic_edit.is_null()) report["dynamic_edit"] = dynamic_edit;
+  report["preset"] = ToString(preset);
+  report["options"] = {
+      {"mode", ToString(options.mode)},
+      {"height", options.height},
+      {"width", options.width},
+      {"near", options.near},
+      {"far", std::isfinite(options.far) ? json(options.far) : json("inf")},
+      {"radius_px", options.radius_px},
+      {"radius_ndc", options.radius_ndc},
+      {"points_per_pixel", options.points_per_pixel},
+      {"pixel_convention",
+       options.pixel_convention == PixelConvention::kPixelCenter
+           ? "pixel-center"
+           : "integer-index"},
+      {"hole_fill", options.hole_fill},
+      {"upsample", PresetUpsampleFactor(preset)},
+      {"frame0_replaced", frame0_replaced}};
+  report["camera"] = {{"fx", camera.fx},       {"fy", camera.fy},
+                      {"cx", camera.cx},       {"cy", camera.cy},
+                      {"width", camera.width}, {"height", camera.height}};
+  report["num_points"] = in.scene.cloud.size();
+  report["output_size"] = {{"width", frames[0].cols},
+                           {"height", frames[0].rows}};
+  json per_frame = json::array();
+  for (size_t f = 0; f < result.frames.size(); ++f) {
+    const RenderedFrame& fr = result.frames[f];
+    per_frame.push_back({{"frame", f},
+                         {"t", edited.timestamps[f]},
+                         {"coverage", fr.coverage()},
+                         {"valid_pixels", fr.num_valid},
+                         {"filled_pixels", fr.num_filled},
+                         {"points_in_view", fr.num_projected}});
+  }
+  report["frames"] = per_frame;
+  report["summary"] = {{"mean_coverage", result.summary.mean_coverage},
+                       {"min_coverage", result.summary.min_coverage},
+                       {"max_coverage", result.summary.max_coverage},
+                       {"all_invalid_frames", result.summary.empty_frames},
+                       {"seconds", result.summary.seconds}};
+  return report;
+}
+
+int RunRender(RenderArgs a) {
+  const int sources = !a.cloud.empty() + !a.image.empty() + !a.monst3r.empty();
+  GEODRIVE_CHECK_INPUT(
+      sources == 1,
+      "give exactly one input: --cloud, --image (with --depth, --intrinsics) "
+      "or --monst3r");
+  if (!a.image.empty()) {
+    GEODRIVE_CHECK_INPUT(
+        !a.depth.empty() && !a.intrinsics.empty(),
+        "--image needs --depth DEPTH.npy and --intrinsics K.txt");
+  }
+  GEODRIVE_CHECK_INPUT(
+      !a.trajectory.empty() || !a.monst3r.empty(),
+      "--trajectory is required (except with --monst3r, which defaults to "
+      "its pred_traj.txt)");
+  const RenderPreset preset = ParseRenderPreset(a.preset);
+  const RenderOptions options = RenderOptionsFromArgs(a, preset);
+  a.edits.forward_then_back = a.reverse;
+  a.edits.Check();
+
+  const RenderInput in = LoadRenderInput(a, options);
+  const PointCloud& cloud = in.scene.cloud;
+  const PinholeCamera& camera = in.camera;
+  cv::Mat real_frame0 = in.real_frame0;
+  std::vector<cv::Mat> ground_truth = in.ground_truth;
+
+  const Trajectory edited = ApplyTrajectoryEdits(in.trajectory, a.edits);
   if (edited.size() != ground_truth.size() || a.edits.Describe() != "none")
     ground_truth.clear();
   std::vector<Rigid3d> cam_from_world;
@@ -243,51 +305,9 @@ int RunRender(RenderArgs a) {
   WriteImageRgb((fs::path(a.out) / "contact_sheet.png").string(),
                 MakeContactSheet(frames, gt_sheet));
 
-  report["input"] = input_desc;
-  report["trajectory"] =
-      a.trajectory.empty() ? a.monst3r + "/pred_traj.txt" : a.trajectory;
-  report["units"] = units;
-  report["edits"] = a.edits.Describe();
-  if (!dynamic_edit.is_null()) report["dynamic_edit"] = dynamic_edit;
-  report["preset"] = ToString(preset);
-  report["options"] = {
-      {"mode", ToString(options.mode)},
-      {"height", options.height},
-      {"width", options.width},
-      {"near", options.near},
-      {"far", std::isfinite(options.far) ? json(options.far) : json("inf")},
-      {"radius_px", options.radius_px},
-      {"radius_ndc", options.radius_ndc},
-      {"points_per_pixel", options.points_per_pixel},
-      {"pixel_convention",
-       options.pixel_convention == PixelConvention::kPixelCenter
-           ? "pixel-center"
-           : "integer-index"},
-      {"hole_fill", options.hole_fill},
-      {"upsample", PresetUpsampleFactor(preset)},
-      {"frame0_replaced", !frame0_replacement.empty()}};
-  report["camera"] = {{"fx", camera.fx},       {"fy", camera.fy},
-                      {"cx", camera.cx},       {"cy", camera.cy},
-                      {"width", camera.width}, {"height", camera.height}};
-  report["num_points"] = cloud.size();
-  report["output_size"] = {{"width", frames[0].cols},
-                           {"height", frames[0].rows}};
-  json per_frame = json::array();
-  for (size_t f = 0; f < result.frames.size(); ++f) {
-    const RenderedFrame& fr = result.frames[f];
-    per_frame.push_back({{"frame", f},
-                         {"t", edited.timestamps[f]},
-                         {"coverage", fr.coverage()},
-                         {"valid_pixels", fr.num_valid},
-                         {"filled_pixels", fr.num_filled},
-                         {"points_in_view", fr.num_projected}});
-  }
-  report["frames"] = per_frame;
-  report["summary"] = {{"mean_coverage", result.summary.mean_coverage},
-                       {"min_coverage", result.summary.min_coverage},
-                       {"max_coverage", result.summary.max_coverage},
-                       {"all_invalid_frames", result.summary.empty_frames},
-                       {"seconds", result.summary.seconds}};
+  report =
+      RenderReport(a, in, edited, preset, options, !frame0_replacement.empty(),
+                   result, frames, dynamic_edit, std::move(report));
   {
     const std::string path = (fs::path(a.out) / "render.json").string();
     std::ofstream out(path);

@@ -5,8 +5,8 @@
 #include <memory>
 #include <sstream>
 
-#include "apps/command.h"
-#include "dataset/synthetic_dataset.h"
+#include "apps/cli/cli.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -15,7 +15,7 @@ namespace {
 struct SynthArgs {
   std::string out;
   SyntheticDatasetOptions options;
-  std::string size = "1600x900";
+  std::string size = "900x1600";
   std::string cameras = "CAM_FRONT";
 };
 
@@ -31,14 +31,7 @@ std::vector<std::string> SplitCommas(const std::string& text) {
 
 int RunSynth(SynthArgs& a) {
   SyntheticDatasetOptions& o = a.options;
-  int w = 0, h = 0;
-  char x = 0;
-  std::istringstream ss(a.size);
-  GEODRIVE_CHECK_INPUT(
-      (ss >> w >> x >> h) && (x == 'x' || x == 'X') && ss.peek() == EOF,
-      "--size: expected WIDTHxHEIGHT, e.g. 1600x900 (got '", a.size, "')");
-  o.image_width = w;
-  o.image_height = h;
+  ParseSizeHxW(a.size, "--size", &o.image_height, &o.image_width);
   if (a.cameras == "all") {
     o.cameras = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT",
                  "CAM_BACK",  "CAM_BACK_LEFT",   "CAM_FRONT_LEFT"};
@@ -85,7 +78,7 @@ CommandRunner SetupSynth(CLI::App& app) {
       "files. Layout: "
       "docs/SYNTHETIC.md.\n\nExamples:\n  geodrive synth --out /tmp/s --scenes "
       "2 --seed 7\n"
-      "  geodrive synth --out /tmp/s --scenes 1 --size 800x450 --monst3r "
+      "  geodrive synth --out /tmp/s --scenes 1 --size 450x800 --monst3r "
       "--duration 8\n"
       "  geodrive synth --out /tmp/trainval --scenes 850 --tables-only "
       "--cameras all --radars "
@@ -96,7 +89,8 @@ CommandRunner SetupSynth(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--seed", o.seed, "World seed")->capture_default_str();
   app.add_option("--size", a->size,
-                 "Camera image size WIDTHxHEIGHT (intrinsics scale with it)")
+                 "Camera image size HxW, height first as every --size "
+                 "(intrinsics scale with it)")
       ->capture_default_str();
   app.add_option("--cameras", a->cameras,
                  "Comma-separated CAM_* channels, or 'all' for the six "

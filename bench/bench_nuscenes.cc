@@ -22,7 +22,7 @@
 #include "dataset/clips.h"
 #include "dataset/nuscenes.h"
 #include "dataset/nuscenes_projection.h"
-#include "dataset/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 
 namespace geodrive {
 namespace {

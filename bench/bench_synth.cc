@@ -9,8 +9,8 @@
 
 #include <filesystem>
 
-#include "dataset/synthetic_dataset.h"
-#include "dataset/synthetic_world.h"
+#include "dataset/synthetic/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_world.h"
 
 namespace geodrive {
 namespace {

@@ -15,15 +15,16 @@
 #include <sstream>
 #include <thread>
 
-#include "geometry/util/files.h"
-#include "geometry/util/progress.h"
 #include "dataset/drive_dataset.h"
 #include "dataset/internal/pair_builder.h"
 #include "dataset/pairs.h"
+#include "dataset/scene_folders.h"
 #include "dataset/scene_source.h"
-#include "render/dynamic_edit.h"
+#include "geometry/util/files.h"
 #include "geometry/util/hash.h"
+#include "geometry/util/progress.h"
 #include "geometry/util/status.h"
+#include "render/dynamic_edit.h"
 #include "render/presets.h"
 
 namespace geodrive {
@@ -31,16 +32,40 @@ namespace geodrive {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-void BuildDatasetOptions::Check() {
+std::string ToString(PairEditMode mode) {
+  switch (mode) {
+    case PairEditMode::k3d:
+      return "3d";
+    case PairEditMode::k2d:
+      return "2d";
+    case PairEditMode::kNone:
+      return "none";
+  }
+  return "none";
+}
+
+PairEditMode ParsePairEditMode(const std::string& text) {
+  if (text == "3d") return PairEditMode::k3d;
+  if (text == "2d") return PairEditMode::k2d;
+  if (text == "none") return PairEditMode::kNone;
+  ThrowInputError("edit mode", "'", text, "' is not one of 3d, 2d, none");
+}
+
+std::string BuildDatasetOptions::SceneSourceName() const {
+  if (geometry != "auto") return geometry;
+  return monst3r_root.empty() ? "lidar" : "monst3r";
+}
+
+void BuildDatasetOptions::Check() const {
   GEODRIVE_CHECK_INPUT(!dataroot.empty(),
                        "build-dataset: --dataroot is required");
   GEODRIVE_CHECK_INPUT(fs::is_directory(dataroot), dataroot,
                        ": dataroot is not a directory");
   GEODRIVE_CHECK_INPUT(!out.empty(), "build-dataset: --out is required");
-  if (geometry == "auto") geometry = monst3r_root.empty() ? "lidar" : "monst3r";
-  if (CreateSceneSource(geometry)->Traits().needs_path) {
+  const std::string source = SceneSourceName();
+  if (CreateSceneSource(source)->Traits().needs_path) {
     GEODRIVE_CHECK_INPUT(!monst3r_root.empty(), "build-dataset: --geometry ",
-                         geometry, " needs --monst3r ROOT (ROOT/<clip id>/)");
+                         source, " needs --monst3r ROOT (ROOT/<clip id>/)");
     GEODRIVE_CHECK_INPUT(fs::is_directory(monst3r_root), monst3r_root,
                          ": MonST3R root is not a directory");
   }
@@ -49,14 +74,9 @@ void BuildDatasetOptions::Check() {
   GEODRIVE_CHECK_INPUT(
       shard_count >= 1 && shard_index >= 0 && shard_index < shard_count,
       "build-dataset: --shard must be i/N with 0 <= i < N");
-  ParseRenderPreset(preset);
-  GEODRIVE_CHECK_INPUT(
-      edit_mode == "3d" || edit_mode == "2d" || edit_mode == "none",
-      "build-dataset: --edit-mode must be 3d, 2d or none");
   GEODRIVE_CHECK_INPUT(
       width >= 16 && height >= 16 && width <= 16384 && height <= 16384,
       "build-dataset: output size must be within 16..16384");
-  ParseResizeMode(resize_mode);
   GEODRIVE_CHECK_INPUT(fps > 0 && fps <= 240,
                        "build-dataset: --fps must be in (0, 240]");
   GEODRIVE_CHECK_INPUT(clip_frames >= 2 && clip_stride >= 1,
@@ -73,14 +93,20 @@ void BuildDatasetOptions::Check() {
 std::string BuildDatasetOptions::ContentOptionsJson() const {
   json j;  // nlohmann::json objects keep keys sorted: stable text
   j["version"] = version;
-  j["geometry"] = geometry;
-  j["preset"] = preset;
-  j["edit_mode"] = edit_mode;
+  j["geometry"] = SceneSourceName();
+  j["preset"] = ToString(preset);
+  j["edit_mode"] = ToString(edit_mode);
   j["clip_frames"] = clip_frames;
   j["clip_stride"] = clip_stride;
+  // Written only when not the default, so that the hash of existing builds
+  // (all frames) stays valid for resuming them.
+  if (frames != ClipFrameSource::kAll) j["frames"] = ToString(frames);
+  if (refine_poses) j["refine_poses"] = true;
+  if (export_format == PairExport::kGeodriveUpstream)
+    j["export"] = "geodrive-upstream";
   j["width"] = width;
   j["height"] = height;
-  j["resize_mode"] = resize_mode;
+  j["resize_mode"] = ToString(resize_mode);
   j["fps"] = fps;
   j["lossless_frames"] = lossless_frames;
   j["video_preset"] = video_preset;
@@ -196,7 +222,9 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   dso.version = opt.version;
   dso.clip_frames = opt.clip_frames;
   dso.clip_stride = opt.clip_stride;
+  dso.frames = opt.frames;
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
+  if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();
   if (!opt.clips.empty()) {
     const std::set<std::string> wanted(opt.clips.begin(), opt.clips.end());
@@ -212,13 +240,22 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     }
     clips = std::move(kept);
   }
+  std::map<std::string, int> clip_index;
+  for (size_t i = 0; i < dataset->ClipIds().size(); ++i)
+    clip_index[dataset->ClipIds()[i]] = static_cast<int>(i);
   ClipContext ctx;
   ctx.dataset = dataset.get();
   ctx.options = &opt;
-  if (CreateSceneSource(opt.geometry)->Traits().needs_path) {
+  ctx.clip_index = &clip_index;
+  std::unique_ptr<SceneFolders> folders;
+  if (CreateSceneSource(opt.SceneSourceName())->Traits().needs_path) {
+    folders = std::make_unique<SceneFolders>(
+        opt.monst3r_root, opt.monst3r_map,
+        opt.SceneSourceName() == "monst3r" ? "pred_traj.txt" : "");
+    ctx.folders = folders.get();
     std::vector<std::string> kept;
     for (auto& c : clips) {
-      if (fs::is_directory(opt.monst3r_root + "/" + c)) {
+      if (folders->Find(c)) {
         kept.push_back(std::move(c));
       } else if (opt.clips.empty()) {
         ++summary.skipped_no_monst3r;
@@ -301,7 +338,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   };
   std::vector<std::thread> pool;
   for (int t = 0;
-       t < std::min<int>(opt.threads, std::max<size_t>(1, pending.size())); ++t) {
+       t < std::min<int>(opt.threads, std::max<size_t>(1, pending.size()));
+       ++t) {
     pool.emplace_back(worker);
   }
   for (auto& th : pool) th.join();
@@ -312,6 +350,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
           .count();
   if (opt.shard_count == 1) {
     RewriteLogs(opt.out);
+    if (opt.export_format == PairExport::kGeodriveUpstream)
+      internal::WriteUpstreamIndex(opt.out);
     WriteBuildReport(opt.out, &summary);
   }
   return summary;
@@ -321,6 +361,7 @@ int MergeBuildOutputs(const std::string& out) {
   GEODRIVE_CHECK_INPUT(fs::is_directory(out + "/pairs"), out,
                        ": not a build-dataset output (no pairs/)");
   const int n = RewriteLogs(out);
+  internal::WriteUpstreamIndex(out);  // no-op without exported pairs
   WriteBuildReport(out, nullptr);
   return n;
 }

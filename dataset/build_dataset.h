@@ -15,9 +15,32 @@
 #include <string>
 #include <vector>
 
+#include "dataset/drive_clip.h"
 #include "geometry/camera.h"
+#include "render/presets.h"
 
 namespace geodrive {
+
+// Object editing of a pair's condition from the clip's vehicle boxes.
+enum class PairEditMode {
+  k3d,    // segment and move the vehicles in 3D (render/dynamic_edit.h)
+  k2d,    // the upstream 2D crop-and-paste
+  kNone,  // render the static scene only
+};
+std::string ToString(PairEditMode mode);  // "3d", "2d", "none"
+// Parses "3d", "2d" or "none"; throws InputError otherwise.
+PairEditMode ParsePairEditMode(const std::string& text);
+
+// Extra formats written beside our pairs.
+enum class PairExport {
+  kNone,
+  // GeoDrive's released trainer (train.py): pairs/<clip>/upstream/render_%d.png
+  // (1024x576, frame 0 = the real image), linked as
+  // OUT/geodrive_upstream/sample_%06d/ with OUT/geodrive_upstream/meta.jsonl
+  // ({gt_frames relative to the dataroot, render_frames relative to
+  // OUT/geodrive_upstream, scene_idx}).
+  kGeodriveUpstream,
+};
 
 struct BuildDatasetOptions {
   std::string dataroot;  // nuScenes root (holds <version>/, samples/, sweeps/)
@@ -25,25 +48,35 @@ struct BuildDatasetOptions {
   // ROOT/<clip_id>/ input folders of path-based scene sources (MonST3R
   // folders for geometry monst3r, depth folders for depth-folder, ...).
   std::string monst3r_root;
-  std::string out;   // output folder
+  // Optional mapping of folder names under monst3r_root to clip ids: the
+  // clips.jsonl of `geodrive clips` (sample_%06d numbering) or "<folder>
+  // <clip id>" lines (dataset/scene_folders.h).
+  std::string monst3r_map;
+  std::string out;  // output folder
   // Scene source name (dataset/scene_source.h: monst3r, lidar, depth-folder,
-  // ...); "auto" = monst3r when monst3r_root is set, lidar otherwise (resolved
-  // by Check()).
+  // ...; a plug-in key, so a registered name rather than an enum); "auto" =
+  // monst3r when monst3r_root is set, lidar otherwise (SceneSourceName()).
   std::string geometry = "auto";
   int threads = 1;  // clips in parallel
   int shard_index = 0, shard_count = 1;
-  std::string preset = "paper";    // paper | geodrive-compat
-  std::string edit_mode = "3d";    // 3d | 2d | none
+  // Render preset: the paper's z-buffer or the released soft compositor.
+  RenderPreset preset = RenderPreset::kPaper;
+  // Object editing from the clip's boxes.
+  PairEditMode edit_mode = PairEditMode::k3d;
   std::vector<std::string> clips;  // restrict to these clip ids (empty = all)
   int max_clips =
       0;  // 0 = no limit (after sharding filter: first N of the list)
-  // Clip selection (dataset/clips.h).
+  // Clip selection (dataset/drive_dataset.h): frames per clip, frames between
+  // clip starts, and which frames (all, or keyframes only for extracts without
+  // sweep files).
   int clip_frames = 25;
   int clip_stride = 6;
+  ClipFrameSource frames = ClipFrameSource::kAll;
   // Output video.
   int width = 720, height = 480;
-  std::string resize_mode =
-      "resize";       // resize (GeoDrive training) | center-crop (inference)
+  // Output framing: plain resize (GeoDrive training) or center crop
+  // (inference).
+  ResizeMode resize_mode = ResizeMode::kResize;
   double fps = 10.0;  // nuScenes 12 Hz clips are labelled 10 fps (as Vista)
   // Also write gt_frames/ and cond_frames/ PNG sequences.
   bool lossless_frames = false;
@@ -60,9 +93,16 @@ struct BuildDatasetOptions {
   // LiDAR geometry source: sweeps within [t0 - before, t0 + after] (s) are
   // aggregated.
   double lidar_window_before_s = 0.5, lidar_window_after_s = 1.5;
+  // MonST3R geometry: refine the poses by reprojection over static pixels
+  // (paper eq. 3) before rendering; meta.json reports the RMS before/after.
+  bool refine_poses = false;
+  // Also write the pairs in another tool's format.
+  PairExport export_format = PairExport::kNone;
   bool quiet = false;
-  // Throws InputError naming the bad option; resolves `geometry` "auto".
-  void Check();
+  // The scene source this run uses (`geometry` with "auto" resolved).
+  std::string SceneSourceName() const;
+  // Throws InputError naming the bad option; changes nothing.
+  void Check() const;
   // The options that affect the content of a pair, as a JSON object (stable key
   // order).
   std::string ContentOptionsJson() const;

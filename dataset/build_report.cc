@@ -86,8 +86,8 @@ void WriteBuildReport(const std::string& out,
     try {
       const PairMeta m = ReadPairMeta(out + "/" + e.pair_dir);
       if (m.scale_source == "lidar") scales.push_back(m.scale);
-      for (double p : m.quality.psnr_static)
-        if (std::isfinite(p)) psnr.push_back(p);
+      for (const auto& p : m.quality.psnr_static)
+        if (p) psnr.push_back(*p);
     } catch (const std::exception&) {
     }
   }

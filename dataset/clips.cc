@@ -26,7 +26,7 @@ void ClipOptions::Check() const {
                        "clip options: max_gap_s must be >= 0");
 }
 
-std::string ClipSelectionSummary::Brief() const {
+std::string ClipSelectionSummary::BriefReport() const {
   std::ostringstream os;
   os << clips << " clips from " << scenes << " scenes (" << scenes_too_short
      << " too short, " << dropped << " candidate starts dropped)";
@@ -42,8 +42,14 @@ std::vector<Clip> SelectSceneClips(const Nuscenes& nusc,
   const int32_t sensor = nusc.FindSensor(options.channel);
   GEODRIVE_CHECK_INPUT(sensor != kNoIndex, nusc.VersionDir(),
                        "/sensor.json: no channel '", options.channel, "'");
-  const std::vector<int32_t>& chain = nusc.Chain(scene, sensor);
   const auto& sd = nusc.sample_data();
+  std::vector<int32_t> keyframes;
+  if (options.keyframes_only) {
+    for (int32_t row : nusc.Chain(scene, sensor))
+      if (sd[row].is_key_frame) keyframes.push_back(row);
+  }
+  const std::vector<int32_t>& chain =
+      options.keyframes_only ? keyframes : nusc.Chain(scene, sensor);
   if (summary) ++summary->scenes;
   const int n = static_cast<int>(chain.size());
   if (n < options.num_frames) {
@@ -98,7 +104,8 @@ std::vector<Clip> SelectSceneClips(const Nuscenes& nusc,
     clip.scene = scene;
     clip.start_index = start;
     clip.resample_rate_hz = options.target_rate_hz;
-    clip.id = MakeClipId(scene_name, start, options.target_rate_hz);
+    clip.id = MakeClipId(scene_name, start, options.target_rate_hz,
+                         options.keyframes_only);
     for (int p : picks) {
       clip.sample_data.push_back(chain[p]);
       clip.timestamps.push_back(ts[p]);

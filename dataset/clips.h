@@ -15,6 +15,10 @@ namespace geodrive {
 
 struct ClipOptions {
   std::string channel = "CAM_FRONT";
+  // Only the channel's keyframes (samples, 2 Hz in nuScenes) instead of every
+  // sample_data (keyframes and sweeps, 12 Hz): for extracts without sweep
+  // files. Start indices then count keyframes and ids end in "_kf".
+  bool keyframes_only = false;
   int num_frames = 25;  // frames per clip
   // Source frames between consecutive clip starts (6 = one keyframe interval at
   // 12 Hz).
@@ -50,7 +54,7 @@ struct ClipSelectionSummary {
   int clips = 0;
   int dropped =
       0;  // candidate starts dropped (gaps, time error, keyframe rule)
-  std::string Brief() const;
+  std::string BriefReport() const;
 };
 
 // All clips of all scenes, in scene then start order.

@@ -3,7 +3,28 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "geometry/util/status.h"
+
 namespace geodrive {
+
+std::string ToString(ClipFrameSource source) {
+  return source == ClipFrameSource::kKeyframes ? "keyframes" : "all";
+}
+
+ClipFrameSource ParseClipFrameSource(const std::string& text) {
+  if (text == "all") return ClipFrameSource::kAll;
+  if (text == "keyframes") return ClipFrameSource::kKeyframes;
+  ThrowInputError("--frames", "'", text, "' is not one of all, keyframes");
+}
+
+double DriveClip::FrameIntervalSeconds() const {
+  if (frames.size() < 2) return 0;
+  std::vector<int64_t> dt;
+  for (size_t i = 1; i < frames.size(); ++i)
+    dt.push_back(frames[i].timestamp_us - frames[i - 1].timestamp_us);
+  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+  return dt[dt.size() / 2] * 1e-6;
+}
 
 std::vector<size_t> LidarProvider::SweepsBetween(int64_t lo_us,
                                                  int64_t hi_us) const {

@@ -26,6 +26,15 @@
 
 namespace geodrive {
 
+// Which of a camera's frames make clips.
+enum class ClipFrameSource {
+  kAll,        // every frame (nuScenes: keyframes and sweeps, 12 Hz)
+  kKeyframes,  // annotated keyframes only (nuScenes samples, 2 Hz)
+};
+std::string ToString(ClipFrameSource source);  // "all" / "keyframes"
+// Parses "all" or "keyframes"; throws InputError otherwise.
+ClipFrameSource ParseClipFrameSource(const std::string& text);
+
 // One annotated object in one frame (or LiDAR sweep).
 struct ClipBox {
   // Stable instance id across frames (nuScenes: the instance token).
@@ -103,6 +112,8 @@ struct DriveClip {
   std::string scene_id;
   // Camera channel of the frames (e.g. "CAM_FRONT").
   std::string channel;
+  // Which frames make the clip.
+  ClipFrameSource frame_source = ClipFrameSource::kAll;
   // Units of poses, boxes and LiDAR ("metres" for every driving dataset).
   std::string units = "metres";
   std::vector<DriveFrame> frames;
@@ -114,6 +125,8 @@ struct DriveClip {
   std::map<std::string, std::string> provenance;
 
   int num_frames() const { return static_cast<int>(frames.size()); }
+  // Median time between consecutive frames (s); 0 for fewer than 2 frames.
+  double FrameIntervalSeconds() const;
 };
 
 }  // namespace geodrive

@@ -29,6 +29,9 @@ struct DriveDatasetOptions {
   std::string version = "v1.0-mini";
   // Camera channel whose frames make the clips.
   std::string channel = "CAM_FRONT";
+  // Every frame of the channel, or only its keyframes (for extracts without
+  // sweep files; clip ids then end in "_kf").
+  ClipFrameSource frames = ClipFrameSource::kAll;
   // Frames per clip.
   int clip_frames = 25;
   // Source frames between consecutive clip starts (6 = one keyframe interval

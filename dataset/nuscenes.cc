@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -102,6 +103,13 @@ enum Table {
   kMap,
   kNumTables
 };
+
+// Tables that real extracts often lack: loading goes on without them and
+// references into them resolve to "unknown" (kNoIndex).
+bool IsOptionalTable(int table) {
+  return table == kAttribute || table == kVisibility || table == kLog ||
+         table == kMap;
+}
 
 const char* const kTableNames[kNumTables] = {
     "category", "attribute",   "visibility",
@@ -293,7 +301,8 @@ class TableSax {
     std::ostringstream os;
     os << "malformed JSON at byte " << position;
     const JsonField* current = depth_ == 2 ? record_.Find("token") : nullptr;
-    if (current && current->kind == JsonField::kString && !current->str.empty()) {
+    if (current && current->kind == JsonField::kString &&
+        !current->str.empty()) {
       os << " (in record " << current->str << ")";
     } else if (!last_token_.empty()) {
       os << " (after record " << last_token_ << ")";
@@ -620,10 +629,14 @@ void NuscenesOptions::Check() const {
       "nuScenes options: quaternion_norm_tol must be in (0, 0.5)");
 }
 
-std::string NuscenesLoadSummary::Brief() const {
+std::string NuscenesLoadSummary::BriefReport() const {
   std::ostringstream os;
   os << std::fixed << std::setprecision(2) << "loaded " << json_bytes / 1e6
      << " MB of JSON in " << seconds << " s";
+  if (!missing_tables.empty()) {
+    os << "; optional tables missing (references to them are unknown):";
+    for (const auto& t : missing_tables) os << " " << t;
+  }
   return os.str();
 }
 
@@ -664,30 +677,51 @@ struct Nuscenes::LoadState {
   std::vector<std::vector<NuscenesToken>> ann_attributes;
   std::vector<std::vector<NuscenesToken>> map_logs;
   std::string paths[kNumTables];
+  bool missing[kNumTables] = {};
+
+  // Parses table t unless it is a missing optional table; returns its bytes.
+  template <typename Fn>
+  size_t Parse(int t, Fn fn) {
+    return missing[t] ? size_t{0} : ParseTable(paths[t], fn);
+  }
+  // The pending references of `table`, `per_row` per record.
+  PendingRefs& Refs(int table, int per_row) {
+    refs[table].per_row = per_row;
+    return refs[table];
+  }
 };
 
 void Nuscenes::Load() {
   LoadState state;
-  const double qtol = options_.quaternion_norm_tol;
   for (int t = 0; t < kNumTables; ++t) {
     state.paths[t] = (std::filesystem::path(VersionDir()) /
                       (std::string(kTableNames[t]) + ".json"))
                          .string();
   }
-  // Fail fast on a missing table before parsing the big ones.
+  // Fail fast on a missing required table before parsing the big ones; an
+  // optional one is noted and treated as empty.
   for (int t = 0; t < kNumTables; ++t) {
     std::error_code ec;
-    if (!std::filesystem::exists(state.paths[t], ec)) {
-      ThrowInputError(state.paths[t], "missing table file");
+    if (std::filesystem::exists(state.paths[t], ec)) continue;
+    if (!IsOptionalTable(t)) {
+      ThrowInputError(state.paths[t], "missing table file (required; the ",
+                      "optional ones are attribute, visibility, log, map)");
     }
+    state.missing[t] = true;
+    summary_.missing_tables.push_back(kTableNames[t]);
   }
-  auto refs = [&](int table, int per_row) -> PendingRefs& {
-    state.refs[table].per_row = per_row;
-    return state.refs[table];
-  };
-  size_t bytes = 0;
+  size_t bytes = LoadDescriptionTables(&state);
+  bytes += LoadCaptureTables(&state);
+  summary_.json_bytes = bytes;
+  Resolve(&state);
+}
 
-  bytes += ParseTable(state.paths[kCategory], [&](const RecordReader& r) {
+// Categories, attributes, visibilities, instances, sensors, calibrations, ego
+// poses, logs and maps.
+size_t Nuscenes::LoadDescriptionTables(LoadState* state) {
+  const double qtol = options_.quaternion_norm_tol;
+  size_t bytes = 0;
+  bytes += state->Parse(kCategory, [&](const RecordReader& r) {
     NuscenesCategory c;
     c.token = r.token();
     c.name = r.String("name");
@@ -695,14 +729,14 @@ void Nuscenes::Load() {
     c.index = static_cast<int>(r.OptionalInt("index", -1));
     categories_.push_back(std::move(c));
   });
-  bytes += ParseTable(state.paths[kAttribute], [&](const RecordReader& r) {
+  bytes += state->Parse(kAttribute, [&](const RecordReader& r) {
     NuscenesAttribute a;
     a.token = r.token();
     a.name = r.String("name");
     a.description = r.OptionalString("description");
     attributes_.push_back(std::move(a));
   });
-  bytes += ParseTable(state.paths[kVisibility], [&](const RecordReader& r) {
+  bytes += state->Parse(kVisibility, [&](const RecordReader& r) {
     NuscenesVisibility v;
     v.token = r.token();
     v.level = r.String("level");
@@ -710,8 +744,8 @@ void Nuscenes::Load() {
     visibilities_.push_back(std::move(v));
   });
   {
-    PendingRefs& p = refs(kInstance, 3);
-    bytes += ParseTable(state.paths[kInstance], [&](const RecordReader& r) {
+    PendingRefs& p = state->Refs(kInstance, 3);
+    bytes += state->Parse(kInstance, [&](const RecordReader& r) {
       NuscenesInstance in;
       in.token = r.token();
       in.nbr_annotations =
@@ -722,7 +756,7 @@ void Nuscenes::Load() {
       instances_.push_back(in);
     });
   }
-  bytes += ParseTable(state.paths[kSensor], [&](const RecordReader& r) {
+  bytes += state->Parse(kSensor, [&](const RecordReader& r) {
     NuscenesSensor s;
     s.token = r.token();
     s.channel = r.String("channel");
@@ -732,43 +766,41 @@ void Nuscenes::Load() {
     sensors_.push_back(std::move(s));
   });
   {
-    PendingRefs& p = refs(kCalibratedSensor, 1);
-    bytes +=
-        ParseTable(state.paths[kCalibratedSensor], [&](const RecordReader& r) {
-          NuscenesCalibratedSensor c;
-          c.token = r.token();
-          c.ego_from_sensor =
-              Rigid3d(r.Quat("rotation", qtol), r.Vec3("translation"));
-          p.tokens.push_back(r.Ref("sensor_token"));
-          const JsonField* k = r.Optional("camera_intrinsic");
-          if (k && k->kind != JsonField::kNull) {
-            if (k->kind != JsonField::kArray || k->array_of_other ||
-                !k->strings.empty()) {
-              r.Error("camera_intrinsic is not a 3x3 matrix or []");
-            }
-            if (!k->numbers.empty() || !k->row_sizes.empty()) {
-              const bool ok = k->row_sizes.size() == 3 &&
-                              k->row_sizes[0] == 3 && k->row_sizes[1] == 3 &&
-                              k->row_sizes[2] == 3 && k->numbers.size() == 9;
-              if (!ok) {
-                r.Error("camera_intrinsic is not 3x3 (got ",
-                        k->row_sizes.size(), " rows, ", k->numbers.size(),
-                        " values)");
-              }
-              for (int i = 0; i < 9; ++i) {
-                if (!std::isfinite(k->numbers[i]))
-                  r.Error("camera_intrinsic has a non-finite value");
-                c.camera_intrinsic(i / 3, i % 3) = k->numbers[i];
-              }
-              c.has_intrinsic = true;
-            }
+    PendingRefs& p = state->Refs(kCalibratedSensor, 1);
+    bytes += state->Parse(kCalibratedSensor, [&](const RecordReader& r) {
+      NuscenesCalibratedSensor c;
+      c.token = r.token();
+      c.ego_from_sensor =
+          Rigid3d(r.Quat("rotation", qtol), r.Vec3("translation"));
+      p.tokens.push_back(r.Ref("sensor_token"));
+      const JsonField* k = r.Optional("camera_intrinsic");
+      if (k && k->kind != JsonField::kNull) {
+        if (k->kind != JsonField::kArray || k->array_of_other ||
+            !k->strings.empty()) {
+          r.Error("camera_intrinsic is not a 3x3 matrix or []");
+        }
+        if (!k->numbers.empty() || !k->row_sizes.empty()) {
+          const bool ok = k->row_sizes.size() == 3 && k->row_sizes[0] == 3 &&
+                          k->row_sizes[1] == 3 && k->row_sizes[2] == 3 &&
+                          k->numbers.size() == 9;
+          if (!ok) {
+            r.Error("camera_intrinsic is not 3x3 (got ", k->row_sizes.size(),
+                    " rows, ", k->numbers.size(), " values)");
           }
-          calibrated_sensors_.push_back(c);
-        });
+          for (int i = 0; i < 9; ++i) {
+            if (!std::isfinite(k->numbers[i]))
+              r.Error("camera_intrinsic has a non-finite value");
+            c.camera_intrinsic(i / 3, i % 3) = k->numbers[i];
+          }
+          c.has_intrinsic = true;
+        }
+      }
+      calibrated_sensors_.push_back(c);
+    });
   }
   {
     ego_poses_.reserve(1 << 16);
-    bytes += ParseTable(state.paths[kEgoPose], [&](const RecordReader& r) {
+    bytes += state->Parse(kEgoPose, [&](const RecordReader& r) {
       NuscenesEgoPose e;
       e.token = r.token();
       e.timestamp = r.Int("timestamp");
@@ -777,7 +809,7 @@ void Nuscenes::Load() {
       ego_poses_.push_back(e);
     });
   }
-  bytes += ParseTable(state.paths[kLog], [&](const RecordReader& r) {
+  bytes += state->Parse(kLog, [&](const RecordReader& r) {
     NuscenesLog l;
     l.token = r.token();
     l.logfile = r.OptionalString("logfile");
@@ -786,17 +818,24 @@ void Nuscenes::Load() {
     l.location = r.OptionalString("location");
     logs_.push_back(std::move(l));
   });
-  bytes += ParseTable(state.paths[kMap], [&](const RecordReader& r) {
+  bytes += state->Parse(kMap, [&](const RecordReader& r) {
     NuscenesMap m;
     m.token = r.token();
     m.category = r.OptionalString("category");
     m.filename = r.RelativePath("filename");
-    state.map_logs.push_back(r.RefList("log_tokens"));
+    state->map_logs.push_back(r.RefList("log_tokens"));
     maps_.push_back(std::move(m));
   });
+  return bytes;
+}
+
+// Scenes, samples, sample_data and annotations.
+size_t Nuscenes::LoadCaptureTables(LoadState* state) {
+  const double qtol = options_.quaternion_norm_tol;
+  size_t bytes = 0;
   {
-    PendingRefs& p = refs(kScene, 3);
-    bytes += ParseTable(state.paths[kScene], [&](const RecordReader& r) {
+    PendingRefs& p = state->Refs(kScene, 3);
+    bytes += state->Parse(kScene, [&](const RecordReader& r) {
       NuscenesScene s;
       s.token = r.token();
       s.name = r.String("name");
@@ -809,8 +848,8 @@ void Nuscenes::Load() {
     });
   }
   {
-    PendingRefs& p = refs(kSample, 3);
-    bytes += ParseTable(state.paths[kSample], [&](const RecordReader& r) {
+    PendingRefs& p = state->Refs(kSample, 3);
+    bytes += state->Parse(kSample, [&](const RecordReader& r) {
       NuscenesSample s;
       s.token = r.token();
       s.timestamp = r.Int("timestamp");
@@ -821,9 +860,9 @@ void Nuscenes::Load() {
     });
   }
   {
-    PendingRefs& p = refs(kSampleData, 5);
+    PendingRefs& p = state->Refs(kSampleData, 5);
     sample_data_.reserve(1 << 16);
-    bytes += ParseTable(state.paths[kSampleData], [&](const RecordReader& r) {
+    bytes += state->Parse(kSampleData, [&](const RecordReader& r) {
       NuscenesSampleData d;
       d.token = r.token();
       d.timestamp = r.Int("timestamp");
@@ -844,31 +883,31 @@ void Nuscenes::Load() {
     });
   }
   {
-    PendingRefs& p = refs(kSampleAnnotation, 5);
-    bytes +=
-        ParseTable(state.paths[kSampleAnnotation], [&](const RecordReader& r) {
-          NuscenesSampleAnnotation a;
-          a.token = r.token();
-          a.translation = r.Vec3("translation");
-          a.size = r.Vec3("size");
-          if (a.size.minCoeff() < 0) r.Error("negative box size");
-          a.rotation = r.Quat("rotation", qtol);
-          a.num_lidar_pts = static_cast<int>(r.OptionalInt("num_lidar_pts", 0));
-          a.num_radar_pts = static_cast<int>(r.OptionalInt("num_radar_pts", 0));
-          p.tokens.push_back(r.Ref("sample_token"));
-          p.tokens.push_back(r.Ref("instance_token"));
-          p.tokens.push_back(r.Ref("visibility_token"));
-          p.tokens.push_back(r.Ref("prev"));
-          p.tokens.push_back(r.Ref("next"));
-          state.ann_attributes.push_back(r.RefList("attribute_tokens"));
-          sample_annotations_.push_back(std::move(a));
-        });
+    PendingRefs& p = state->Refs(kSampleAnnotation, 5);
+    bytes += state->Parse(kSampleAnnotation, [&](const RecordReader& r) {
+      NuscenesSampleAnnotation a;
+      a.token = r.token();
+      a.translation = r.Vec3("translation");
+      a.size = r.Vec3("size");
+      if (a.size.minCoeff() < 0) r.Error("negative box size");
+      a.rotation = r.Quat("rotation", qtol);
+      a.num_lidar_pts = static_cast<int>(r.OptionalInt("num_lidar_pts", 0));
+      a.num_radar_pts = static_cast<int>(r.OptionalInt("num_radar_pts", 0));
+      p.tokens.push_back(r.Ref("sample_token"));
+      p.tokens.push_back(r.Ref("instance_token"));
+      p.tokens.push_back(r.Ref("visibility_token"));
+      p.tokens.push_back(r.Ref("prev"));
+      p.tokens.push_back(r.Ref("next"));
+      state->ann_attributes.push_back(r.RefList("attribute_tokens"));
+      sample_annotations_.push_back(std::move(a));
+    });
   }
-  summary_.json_bytes = bytes;
-  Resolve(&state);
+  return bytes;
 }
 
-void Nuscenes::Resolve(LoadState* state) {
+// Open-addressing token -> row index of every table (duplicate tokens are an
+// error naming the table).
+void Nuscenes::BuildTokenIndices(const LoadState* state) {
   // Token indices.
   auto build = [&](int table, size_t n, auto token_of) {
     TokenIndex& index = index_[table];
@@ -906,12 +945,17 @@ void Nuscenes::Resolve(LoadState* state) {
   GEODRIVE_BUILD_INDEX(kSampleAnnotation, sample_annotations_);
   GEODRIVE_BUILD_INDEX(kMap, maps_);
 #undef GEODRIVE_BUILD_INDEX
+}
+
+void Nuscenes::Resolve(LoadState* state) {
+  BuildTokenIndices(state);
 
   // Resolves a reference of `table`'s record `row` (whose token is `self`) to a
   // row of `target`.
   auto resolve = [&](int table, const NuscenesToken& self, const char* field,
                      int target, const NuscenesToken& ref,
                      bool required) -> int32_t {
+    if (state->missing[target]) return kNoIndex;  // optional table absent
     if (ref.empty()) {
       if (required) {
         ThrowInputError(state->paths[table], "record ", self.ToString(), ": ",
@@ -953,6 +997,7 @@ void Nuscenes::Resolve(LoadState* state) {
     for (const auto& t : state->map_logs[m]) {
       const int32_t l =
           resolve(kMap, maps_[m].token, "log_tokens", kLog, t, true);
+      if (l == kNoIndex) continue;  // log.json missing
       maps_[m].logs.push_back(l);
       logs_[l].map = static_cast<int32_t>(m);  // devkit: log['map_token']
     }
@@ -1016,9 +1061,9 @@ void Nuscenes::Resolve(LoadState* state) {
       a.next = resolve(kSampleAnnotation, a.token, "next", kSampleAnnotation,
                        p[5 * i + 4], false);
       for (const auto& t : state->ann_attributes[i]) {
-        a.attributes.push_back(resolve(kSampleAnnotation, a.token,
-                                       "attribute_tokens", kAttribute, t,
-                                       true));
+        const int32_t at = resolve(kSampleAnnotation, a.token,
+                                   "attribute_tokens", kAttribute, t, true);
+        if (at != kNoIndex) a.attributes.push_back(at);
       }
       a.category = instances_[a.instance].category;
       samples_[a.sample].anns.push_back(static_cast<int32_t>(i));

@@ -207,7 +207,10 @@ struct NuscenesOptions {
 struct NuscenesLoadSummary {
   double seconds = 0;
   size_t json_bytes = 0;
-  std::string Brief() const;
+  // Optional tables absent from the version folder (attribute, visibility,
+  // log, map): loaded as empty, references into them are kNoIndex.
+  std::vector<std::string> missing_tables;
+  std::string BriefReport() const;
 };
 
 class Nuscenes {
@@ -291,6 +294,9 @@ class Nuscenes {
  private:
   struct LoadState;
   void Load();
+  size_t LoadDescriptionTables(LoadState* state);
+  size_t LoadCaptureTables(LoadState* state);
+  void BuildTokenIndices(const LoadState* state);
   void Resolve(LoadState* state);
   void BuildChains();
 

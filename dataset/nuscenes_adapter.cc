@@ -78,6 +78,7 @@ class NuscenesDriveDataset : public DriveDataset {
     co.channel = options.channel;
     co.num_frames = options.clip_frames;
     co.stride = options.clip_stride;
+    co.keyframes_only = options.frames == ClipFrameSource::kKeyframes;
     clips_ = SelectClips(*nusc_, co);
     for (size_t i = 0; i < clips_.size(); ++i) {
       ids_.push_back(clips_[i].id);
@@ -90,7 +91,9 @@ class NuscenesDriveDataset : public DriveDataset {
     std::ostringstream os;
     os << "nuscenes " << options_.version << " at " << options_.root << ": "
        << nusc_->scenes().size() << " scenes, " << ids_.size() << " "
-       << options_.clip_frames << "-frame " << options_.channel << " clips";
+       << options_.clip_frames << "-frame " << options_.channel
+       << (options_.frames == ClipFrameSource::kKeyframes ? " keyframe" : "")
+       << " clips; " << nusc_->summary().BriefReport();
     return os.str();
   }
   const std::vector<std::string>& ClipIds() const override { return ids_; }
@@ -108,11 +111,19 @@ class NuscenesDriveDataset : public DriveDataset {
     out.scene_name = nusc.scenes()[clip.scene].name;
     out.scene_id = nusc.scenes()[clip.scene].token.ToString();
     out.channel = options_.channel;
+    out.frame_source = options_.frames;
     out.units = "metres";
     std::shared_ptr<NuscenesLidar> lidar;
     if (HasLidar()) {
-      lidar = std::make_shared<NuscenesLidar>(
-          nusc_, nusc.Chain(clip.scene, lidar_sensor_));
+      // Keyframe clips use keyframe sweeps only (extracts without sweep
+      // files have just those on disk).
+      std::vector<int32_t> rows;
+      for (int32_t sd : nusc.Chain(clip.scene, lidar_sensor_)) {
+        if (options_.frames == ClipFrameSource::kAll ||
+            nusc.sample_data()[sd].is_key_frame)
+          rows.push_back(sd);
+      }
+      lidar = std::make_shared<NuscenesLidar>(nusc_, std::move(rows));
       out.lidar = lidar;
     }
     for (int32_t sd : clip.sample_data) {
@@ -137,12 +148,18 @@ class NuscenesDriveDataset : public DriveDataset {
       out.frames.push_back(std::move(f));
     }
     out.provenance = {
-        {"frames", options_.channel + " sample_data (keyframes and sweeps)"},
+        {"frames", options_.channel +
+                       (options_.frames == ClipFrameSource::kKeyframes
+                            ? " keyframe sample_data (2 Hz samples)"
+                            : " sample_data (keyframes and sweeps)")},
         {"poses", "ego_pose.json * calibrated_sensor.json"},
         {"camera", "calibrated_sensor.json camera_intrinsic"},
         {"boxes",
          "sample_annotation.json, interpolated to each sample_data time"},
-        {"lidar", HasLidar() ? "LIDAR_TOP sample_data of the scene" : "none"}};
+        {"lidar", !HasLidar() ? "none"
+                  : options_.frames == ClipFrameSource::kKeyframes
+                      ? "LIDAR_TOP keyframe sample_data of the scene"
+                      : "LIDAR_TOP sample_data of the scene"}};
     return out;
   }
 
@@ -155,8 +172,8 @@ class NuscenesDriveDataset : public DriveDataset {
                          "scene '", id.substr(0, slash), "' not found in ",
                          nusc_->VersionDir());
     ThrowInputError("'" + id + "'", "is not a ", options_.clip_frames,
-                    "-frame clip of the dataset (stride ",
-                    options_.clip_stride, "; see `geodrive nuscenes-info`)");
+                    "-frame clip of the dataset (stride ", options_.clip_stride,
+                    "; see `geodrive nuscenes-info`)");
   }
 
   DriveDatasetOptions options_;

@@ -16,8 +16,8 @@
 
 #include "dataset/lidar_projection.h"
 #include "dataset/nuscenes.h"
-#include "render/boxes.h"
 #include "geometry/rigid3.h"
+#include "render/boxes.h"
 
 namespace geodrive {
 
@@ -31,7 +31,8 @@ LidarProjection MapPointCloudToImage(
     int32_t cam_sd,
     const LidarProjectionOptions& options = {});
 
-// 2D boxes [xmin, ymin, xmax, ymax] in pixels are render/boxes.h's Box2d (one type project-wide).
+// 2D boxes [xmin, ymin, xmax, ymax] in pixels are render/boxes.h's Box2d (one
+// type project-wide).
 double IoU(const Box2d& a, const Box2d& b);
 
 // Devkit `post_process_coords`: convex hull of the points intersected with [0,

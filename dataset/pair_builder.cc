@@ -3,7 +3,10 @@
 
 #include "dataset/internal/pair_builder.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <filesystem>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -16,8 +19,8 @@
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
 #include "render/renderer.h"
-#include "render/video.h"
-#include "render/video_h264.h"
+#include "render/video/h264.h"
+#include "render/video/video.h"
 
 namespace geodrive {
 namespace internal {
@@ -71,8 +74,8 @@ bool IsVehicle(const std::string& category) {
   return category.rfind("vehicle.", 0) == 0;
 }
 
-// PSNR (dB, data range 255) over the pixels where mask != 0; NaN if none.
-double MaskedPsnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+// PSNR (dB, data range 255) over the pixels where mask != 0; nullopt if none.
+std::optional<double> MaskedPsnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
   double se = 0;
   int64_t n = 0;
   for (int y = 0; y < a.rows; ++y) {
@@ -88,7 +91,7 @@ double MaskedPsnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
       n += 3;
     }
   }
-  if (n == 0) return std::nan("");
+  if (n == 0) return std::nullopt;
   const double mse = se / n;
   return mse <= 0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
 }
@@ -96,12 +99,12 @@ double MaskedPsnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
 ImageResizeSpec OutputSpec(const PinholeCamera& cam,
                            const BuildDatasetOptions& opt) {
   return ComputeResizeSpec(cam.width, cam.height, opt.width, opt.height,
-                           ParseResizeMode(opt.resize_mode));
+                           opt.resize_mode);
 }
 
 // Static-region agreement with GT: rendered pixels outside every vehicle (box
 // grown 4 px).
-double StaticPsnr(const cv::Mat& cond,
+std::optional<double> StaticPsnr(const cv::Mat& cond,
                   const cv::Mat& gt,
                   const cv::Mat& render_mask,
                   const BoxSequences& boxes,
@@ -153,12 +156,18 @@ ClipFrames ReadClipFrames(const DriveClip& clip,
 
 ConditionScene BuildClipScene(const DriveClip& clip,
                               const std::vector<cv::Mat>& images,
+                              const std::string& path,
                               const BuildDatasetOptions& opt) {
-  const std::unique_ptr<SceneSource> source = CreateSceneSource(opt.geometry);
+  const std::string name = opt.SceneSourceName();
+  const std::unique_ptr<SceneSource> source = CreateSceneSource(name);
   SceneInputs in;
   in.clip = &clip;
   in.clip_images = &images;
-  if (source->Traits().needs_path) in.path = opt.monst3r_root + "/" + clip.id;
+  if (source->Traits().needs_path) {
+    GEODRIVE_CHECK_INPUT(!path.empty(), clip.id, ": no input folder for scene "
+                         "source ", name, " under ", opt.monst3r_root);
+    in.path = path;
+  }
   SceneSourceOptions so;
   so.filter = PointmapFilter::kPaper;
   so.min_confidence = opt.min_confidence;
@@ -166,9 +175,10 @@ ConditionScene BuildClipScene(const DriveClip& clip,
   so.max_depth_m = opt.max_depth_m;
   so.lidar_window_before_s = opt.lidar_window_before_s;
   so.lidar_window_after_s = opt.lidar_window_after_s;
+  so.refine_poses = opt.refine_poses;
   ConditionScene scene = source->Build(in, so);
   GEODRIVE_CHECK_INPUT(scene.trajectory.size() == clip.frames.size(), clip.id,
-                       ": scene source ", opt.geometry, " gave ",
+                       ": scene source ", name, " gave ",
                        scene.trajectory.size(), " poses for ",
                        clip.frames.size(), " frames");
   return scene;
@@ -215,13 +225,13 @@ ConditionRender RenderCondition(const ConditionScene& scene,
                                 const std::vector<cv::Mat>& gt,
                                 const BuildDatasetOptions& opt) {
   const int n = static_cast<int>(scene.trajectory.size());
-  const RenderPreset preset = ParseRenderPreset(opt.preset);
+  const RenderPreset preset = opt.preset;
   std::vector<Rigid3d> cam_from_cam0(n);
   for (int i = 0; i < n; ++i)
     cam_from_cam0[i] = scene.trajectory.world_from_cam[i].Inverse();
   RenderOptions ro = PresetRenderOptions(preset);
-  PinholeCamera cam_render = scene.CameraAt(opt.width, opt.height,
-                                            ParseResizeMode(opt.resize_mode));
+  PinholeCamera cam_render =
+      scene.CameraAt(opt.width, opt.height, opt.resize_mode);
   if (preset == RenderPreset::kPaper) {
     ro.width = opt.width;
     ro.height = opt.height;
@@ -235,11 +245,12 @@ ConditionRender RenderCondition(const ConditionScene& scene,
   }
   ro.num_threads = opt.threads > 1 ? 1 : 0;
   RenderResult result;
-  if (opt.edit_mode == "none" || boxes.instances.empty()) {
+  if (opt.edit_mode == PairEditMode::kNone || boxes.instances.empty()) {
     result = RenderFrames(scene.cloud, {cam_render}, cam_from_cam0, ro);
   } else {
     DynamicEditOptions eo;
-    eo.mode = ParseEditMode(opt.edit_mode);
+    eo.mode =
+        opt.edit_mode == PairEditMode::k2d ? EditMode::k2d : EditMode::k3d;
     eo.frame0_image = gt.front();
     if (!scene.dynamic_mask.empty()) eo.dynamic_mask = scene.dynamic_mask;
     eo.num_threads = ro.num_threads;
@@ -249,10 +260,14 @@ ConditionRender RenderCondition(const ConditionScene& scene,
     result.frames = std::move(edited.frames);
   }
   ConditionRender out;
-  for (int i = 0; i < n; ++i) out.coverage.push_back(result.frames[i].coverage());
+  for (int i = 0; i < n; ++i)
+    out.coverage.push_back(result.frames[i].coverage());
   out.frames = FinalFrames(
       result, preset,
       preset == RenderPreset::kGeodriveCompat ? gt.front() : cv::Mat());
+  if (opt.export_format == PairExport::kGeodriveUpstream) {
+    for (const cv::Mat& f : out.frames) out.native_frames.push_back(f.clone());
+  }
   for (auto& f : out.frames) {
     if (f.cols != opt.width || f.rows != opt.height) {
       cv::Mat r;
@@ -261,8 +276,8 @@ ConditionRender RenderCondition(const ConditionScene& scene,
     }
   }
   for (int i = 0; i < n; ++i) {
-    out.psnr_static.push_back(StaticPsnr(out.frames[i], gt[i],
-                                         result.frames[i].mask, boxes, i, opt));
+    out.psnr_static.push_back(
+        StaticPsnr(out.frames[i], gt[i], result.frames[i].mask, boxes, i, opt));
   }
   return out;
 }
@@ -276,11 +291,13 @@ PairMeta MakePairMeta(const DriveClip& clip,
   meta.scene_token = clip.scene_id;
   for (const DriveFrame& f : clip.frames)
     meta.frames.push_back({f.frame_id, f.timestamp_us, f.relative_path});
+  meta.frame_source = ToString(clip.frame_source);
+  meta.frame_interval_s = clip.FrameIntervalSeconds();
   meta.fps = opt.fps;
-  meta.resize_mode = opt.resize_mode;
-  meta.geometry_source = opt.geometry;
-  meta.preset = opt.preset;
-  meta.edit_mode = opt.edit_mode;
+  meta.resize_mode = ToString(opt.resize_mode);
+  meta.geometry_source = opt.SceneSourceName();
+  meta.preset = ToString(opt.preset);
+  meta.edit_mode = ToString(opt.edit_mode);
   meta.options_json = opt.ContentOptionsJson();
   meta.options_hash = StableHash64(meta.options_json);
   meta.tool_version = GEODRIVE_VERSION;
@@ -289,10 +306,11 @@ PairMeta MakePairMeta(const DriveClip& clip,
   meta.scale_report = scene.scale.report;
   if (scene.scale.inlier_fraction)
     meta.quality.scale_inlier_fraction = *scene.scale.inlier_fraction;
+  meta.quality.reprojection_rms_px_before = scene.reprojection_rms_px_before;
+  meta.quality.reprojection_rms_px_after = scene.reprojection_rms_px_after;
   meta.pose_units = scene.metric() ? "metres" : "monst3r";
   meta.world_from_cam = scene.trajectory.world_from_cam;
-  meta.intrinsics = scene.CameraAt(opt.width, opt.height,
-                                   ParseResizeMode(opt.resize_mode));
+  meta.intrinsics = scene.CameraAt(opt.width, opt.height, opt.resize_mode);
   return meta;
 }
 
@@ -326,6 +344,10 @@ void WritePairFolder(const std::string& dir,
     gt_sel.push_back(gt[i]), cond_sel.push_back(cond.frames[i]);
   WriteImageRgb(dir + "/preview.png", MakeContactSheet(cond_sel, gt_sel, co));
   WriteBoxesJson(dir + "/boxes.json", boxes);
+  if (opt.export_format == PairExport::kGeodriveUpstream) {
+    WriteUpstreamFrames(dir, frames, cond);
+    meta->files["upstream"] = "upstream";
+  }
   meta->files["gt"] = "gt.mp4";
   meta->files["cond"] = "cond.mp4";
   meta->files["first_frame"] = "first_frame.png";
@@ -333,6 +355,71 @@ void WritePairFolder(const std::string& dir,
   meta->files["boxes"] = "boxes.json";
   meta->files["meta"] = "meta.json";
   WriteFileAtomic(dir + "/meta.json", PairMetaToJson(*meta));
+}
+
+void WriteUpstreamFrames(const std::string& dir,
+                         const ClipFrames& frames,
+                         const ConditionRender& cond) {
+  const cv::Size size(1024, 576);  // upstream: 288x512 render, x2 upsample
+  const std::string up = dir + "/upstream";
+  std::filesystem::create_directories(up);
+  for (size_t i = 0; i < cond.native_frames.size(); ++i) {
+    // Frame 0 is the real image (upstream replaces it); the others are the
+    // renderer's frames (exactly 576x1024 with the released preset).
+    const cv::Mat& src = i == 0 ? frames.full.front() : cond.native_frames[i];
+    cv::Mat f = src;
+    if (f.size() != size) {
+      cv::resize(src, f, size, 0, 0,
+                 src.cols > size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
+    }
+    WriteImageRgb(up + "/render_" + std::to_string(i) + ".png", f);
+  }
+}
+
+int WriteUpstreamIndex(const std::string& out) {
+  namespace fs = std::filesystem;
+  const std::string root = out + "/geodrive_upstream";
+  std::vector<std::pair<int, std::string>> samples;  // scene_idx, jsonl line
+  if (fs::is_directory(out + "/pairs")) {
+    for (const auto& e : fs::directory_iterator(out + "/pairs")) {
+      const std::string name = e.path().filename().string();
+      if (!e.is_directory() || name.rfind(".tmp-", 0) == 0 ||
+          !fs::exists(e.path() / "meta.json") ||
+          !fs::is_directory(e.path() / "upstream"))
+        continue;
+      const PairMeta m = ReadPairMeta(e.path().string());
+      if (!m.upstream_scene_idx) continue;
+      char sample[32];
+      std::snprintf(sample, sizeof(sample), "sample_%06d",
+                    *m.upstream_scene_idx);
+      const fs::path link = fs::path(root) / sample;
+      fs::create_directories(root);
+      std::error_code ec;
+      fs::remove(link, ec);
+      fs::create_directory_symlink(fs::path("..") / "pairs" / name / "upstream",
+                                   link, ec);
+      GEODRIVE_CHECK_INPUT(!ec, link.string(), ": cannot create link (",
+                           ec.message(), ")");
+      std::string line = "{\"gt_frames\": [";
+      for (size_t i = 0; i < m.frames.size(); ++i)
+        line += (i ? ", \"" : "\"") + m.frames[i].filename + "\"";
+      line += "], \"render_frames\": [";
+      for (size_t i = 0; i < m.frames.size(); ++i) {
+        line += std::string(i ? ", \"" : "\"") + sample + "/render_" +
+                std::to_string(i) + ".png\"";
+      }
+      line += "], \"scene_idx\": " + std::to_string(*m.upstream_scene_idx) +
+              "}";
+      samples.emplace_back(*m.upstream_scene_idx, line);
+    }
+  }
+  if (samples.empty() && !fs::exists(root)) return 0;
+  fs::create_directories(root);
+  std::sort(samples.begin(), samples.end());
+  std::string text;
+  for (const auto& [idx, line] : samples) text += line + "\n";
+  WriteFileAtomic(root + "/meta.jsonl", text);
+  return static_cast<int>(samples.size());
 }
 
 PairMeta BuildPair(const ClipContext& ctx,
@@ -345,8 +432,10 @@ PairMeta BuildPair(const ClipContext& ctx,
       timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
   const ClipFrames frames =
       timer.Run("gt", [&] { return ReadClipFrames(clip, opt); });
+  const std::string path =
+      ctx.folders ? ctx.folders->Find(clip_id).value_or("") : std::string();
   const ConditionScene scene = timer.Run(
-      "geometry", [&] { return BuildClipScene(clip, frames.full, opt); });
+      "geometry", [&] { return BuildClipScene(clip, frames.full, path, opt); });
   for (const auto& [step, s] : scene.seconds) {  // e.g. the LiDAR scale fit
     (*stage_seconds)[step] += s;
     (*stage_seconds)["geometry"] -= s;
@@ -356,9 +445,10 @@ PairMeta BuildPair(const ClipContext& ctx,
   const ConditionRender cond = timer.Run(
       "render", [&] { return RenderCondition(scene, boxes, frames.gt, opt); });
   PairMeta meta = MakePairMeta(clip, scene, opt);
-  timer.Run("encode", [&] {
-    WritePairFolder(tmp_dir, frames, cond, boxes, opt, &meta);
-  });
+  if (opt.export_format == PairExport::kGeodriveUpstream && ctx.clip_index)
+    meta.upstream_scene_idx = ctx.clip_index->at(clip_id);
+  timer.Run("encode",
+            [&] { WritePairFolder(tmp_dir, frames, cond, boxes, opt, &meta); });
   return meta;
 }
 

@@ -57,6 +57,9 @@ std::string PairMetaToJson(const PairMeta& m) {
   }
   j["frames"] = frames;
   j["num_frames"] = m.frames.size();
+  j["frame_source"] = m.frame_source;
+  if (m.frame_interval_s > 0) j["frame_interval_s"] = m.frame_interval_s;
+  if (m.upstream_scene_idx) j["upstream_scene_idx"] = *m.upstream_scene_idx;
   j["fps"] = m.fps;
   j["intrinsics"] = {{"fx", m.intrinsics.fx},
                      {"fy", m.intrinsics.fy},
@@ -82,13 +85,33 @@ std::string PairMetaToJson(const PairMeta& m) {
   j["tool_version"] = m.tool_version;
   json q;
   q["coverage"] = m.quality.coverage;
-  q["reprojection_rms_px"] = m.quality.reprojection_rms_px;
-  q["scale_inlier_fraction"] = m.quality.scale_inlier_fraction;
-  q["psnr_static"] = m.quality.psnr_static;
+  if (m.quality.reprojection_rms_px_before)
+    q["reprojection_rms_px_before"] = *m.quality.reprojection_rms_px_before;
+  if (m.quality.reprojection_rms_px_after)
+    q["reprojection_rms_px_after"] = *m.quality.reprojection_rms_px_after;
+  if (m.quality.scale_inlier_fraction)
+    q["scale_inlier_fraction"] = *m.quality.scale_inlier_fraction;
+  json psnr = json::array();
+  for (const auto& p : m.quality.psnr_static)
+    psnr.push_back(p ? json(*p) : json(nullptr));
+  q["psnr_static"] = psnr;
   j["quality"] = q;
   j["files"] = m.files;
   return j.dump(2) + "\n";
 }
+
+namespace {
+
+// A number field that may be absent or null (older metas wrote -1 for "not
+// computed": read as absent).
+std::optional<double> OptionalNumber(const json& j, const char* key) {
+  if (!j.contains(key) || j.at(key).is_null()) return std::nullopt;
+  const double v = j.at(key).get<double>();
+  if (v < 0) return std::nullopt;
+  return v;
+}
+
+}  // namespace
 
 PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
   json j;
@@ -128,9 +151,23 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     m.tool_version = j.at("tool_version").get<std::string>();
     const auto& q = j.at("quality");
     m.quality.coverage = q.at("coverage").get<std::vector<double>>();
-    m.quality.reprojection_rms_px = q.value("reprojection_rms_px", -1.0);
-    m.quality.scale_inlier_fraction = q.value("scale_inlier_fraction", -1.0);
-    m.quality.psnr_static = q.value("psnr_static", std::vector<double>{});
+    m.quality.reprojection_rms_px_before =
+        OptionalNumber(q, "reprojection_rms_px_before");
+    m.quality.reprojection_rms_px_after =
+        OptionalNumber(q, "reprojection_rms_px_after");
+    m.quality.scale_inlier_fraction =
+        OptionalNumber(q, "scale_inlier_fraction");
+    if (q.contains("psnr_static")) {
+      for (const auto& p : q.at("psnr_static")) {
+        m.quality.psnr_static.push_back(
+            p.is_null() ? std::nullopt
+                        : std::optional<double>(p.get<double>()));
+      }
+    }
+    m.frame_source = j.value("frame_source", std::string("all"));
+    m.frame_interval_s = j.value("frame_interval_s", 0.0);
+    if (j.contains("upstream_scene_idx"))
+      m.upstream_scene_idx = j.at("upstream_scene_idx").get<int>();
     m.files = j.at("files").get<std::map<std::string, std::string>>();
   } catch (const json::exception& e) {
     ThrowInputError(what, "missing or mistyped field (", e.what(), ")");

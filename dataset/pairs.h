@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,11 +29,17 @@ struct PairFrame {
 };
 
 struct PairQuality {
-  std::vector<double> coverage;  // fraction of valid condition pixels per frame
-  double reprojection_rms_px = -1;    // pose refinement RMS (-1 when not run)
-  double scale_inlier_fraction = -1;  // LiDAR scale fit (-1 when not run)
-  std::vector<double>
-      psnr_static;  // optional: condition vs GT PSNR in static pixels per frame
+  // Fraction of valid condition pixels per frame.
+  std::vector<double> coverage;
+  // Reprojection RMS (px) over static pixels before and after the pose
+  // refinement (paper eq. 3); absent when the refinement did not run.
+  std::optional<double> reprojection_rms_px_before;
+  std::optional<double> reprojection_rms_px_after;
+  // Inlier fraction of the LiDAR scale fit; absent when there was none.
+  std::optional<double> scale_inlier_fraction;
+  // Condition vs GT PSNR (dB) over the static rendered pixels per frame;
+  // nullopt (JSON null) for a frame with no such pixel.
+  std::vector<std::optional<double>> psnr_static;
 };
 
 struct PairMeta {
@@ -40,6 +47,14 @@ struct PairMeta {
   std::string scene_name;
   std::string scene_token;
   std::vector<PairFrame> frames;
+  // Which frames make the clip: "all" (keyframes and sweeps) or "keyframes";
+  // and the median time between consecutive frames (s), 0 when unknown (old
+  // metas without the field).
+  std::string frame_source = "all";
+  double frame_interval_s = 0;
+  // With --export geodrive-upstream: the clip's index in the dataset's clip
+  // list (upstream scene_idx / sample_%06d); the frames are files.upstream.
+  std::optional<int> upstream_scene_idx;
   double fps = 10.0;
   PinholeCamera intrinsics;  // at the output size
   std::string resize_mode;   // "resize" or "center-crop"
@@ -107,6 +122,5 @@ struct FailureEntry {
 };
 std::string FailureEntryToJson(const FailureEntry& entry);
 std::vector<FailureEntry> ReadFailures(const std::string& path);
-
 
 }  // namespace geodrive

@@ -34,9 +34,8 @@ const std::vector<Entry>& Registry() {
 PinholeCamera ConditionScene::CameraAt(int width,
                                        int height,
                                        ResizeMode mode) const {
-  return ApplyResizeSpec(
-      camera, ComputeResizeSpec(camera.width, camera.height, width, height,
-                                mode));
+  return ApplyResizeSpec(camera, ComputeResizeSpec(camera.width, camera.height,
+                                                   width, height, mode));
 }
 
 Trajectory ConditionScene::PlaceTrajectory(const Trajectory& user) const {
@@ -68,7 +67,8 @@ std::unique_ptr<SceneSource> CreateSceneSource(const std::string& name) {
     if (name == e.name) return e.create();
   }
   std::ostringstream os;
-  for (const Entry& e : Registry()) os << (os.tellp() > 0 ? ", " : "") << e.name;
+  for (const Entry& e : Registry())
+    os << (os.tellp() > 0 ? ", " : "") << e.name;
   throw InputError("unknown scene source '" + name + "' (expected one of " +
                    os.str() + ")");
 }
@@ -84,8 +84,8 @@ ConditionScene BuildConditionScene(const std::string& name,
   GEODRIVE_CHECK_INPUT(!traits.needs_path || !inputs.path.empty(),
                        "scene source ", name, " needs an input path (",
                        traits.help, ")");
-  GEODRIVE_CHECK_INPUT(!traits.needs_clip || inputs.clip, "scene source ",
-                       name, " needs a dataset clip (", traits.help, ")");
+  GEODRIVE_CHECK_INPUT(!traits.needs_clip || inputs.clip, "scene source ", name,
+                       " needs a dataset clip (", traits.help, ")");
   return source->Build(inputs, options);
 }
 

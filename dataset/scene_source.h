@@ -89,6 +89,10 @@ struct ConditionScene {
   std::string description;
   // Seconds spent per step inside the source (e.g. "scale" for a LiDAR fit).
   std::map<std::string, double> seconds;
+  // Reprojection RMS (px) over static pixels before and after the pose
+  // refinement (paper eq. 3), when the source ran it.
+  std::optional<double> reprojection_rms_px_before;
+  std::optional<double> reprojection_rms_px_after;
 
   bool metric() const { return units == "metres"; }
   // The frame-0 camera for an output of width x height, resized (and
@@ -109,6 +113,9 @@ struct SceneSourceOptions {
   // Fit a metric scale against the clip's LiDAR (relative-depth sources with
   // a clip that has LiDAR).
   bool lidar_scale = true;
+  // Refine the reconstruction's poses by reprojection least squares over
+  // static confident pixels (paper eq. 3; MonST3R source, kPaper).
+  bool refine_poses = false;
   // LiDAR aggregation: sweeps within [t0 - before, t0 + after] seconds.
   double lidar_window_before_s = 0.5;
   double lidar_window_after_s = 1.5;

@@ -186,7 +186,7 @@ bool IsUnusedBranchParam(const std::string& name) {
   return false;
 }
 
-std::string LoadReport::Summary(size_t max_list) const {
+std::string LoadReport::BriefReport(size_t max_list) const {
   std::ostringstream os;
   os << source << ": " << matched << " tensors matched, " << missing.size()
      << " missing, " << unexpected.size() << " unexpected, "

@@ -95,7 +95,7 @@ struct LoadReport {
   std::vector<std::string> mismatched;  // "name: file [..] vs model [..]"
   bool ok() const { return missing.empty() && mismatched.empty(); }
   // One line, plus up to `max_list` names per category.
-  std::string Summary(size_t max_list = 10) const;
+  std::string BriefReport(size_t max_list = 10) const;
 };
 
 // Throws InputError naming the checkpoint when an encoder (branch) checkpoint

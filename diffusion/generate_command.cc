@@ -31,25 +31,27 @@
 #include <string>
 #include <vector>
 
+#include "apps/cli/cli.h"
+#include "apps/cli/edit_args.h"
 #include "dataset/pairs.h"
+#include "dataset/scene_source.h"
 #include "diffusion/config.h"
 #include "diffusion/model.h"
 #include "diffusion/safetensors.h"
 #include "diffusion/sampler.h"
 #include "diffusion/vae.h"
-#include "eval/video_io.h"
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
-#include "dataset/scene_source.h"
 #include "geometry/point_cloud.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_json.h"
+#include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
 #include "render/renderer.h"
-#include "render/video.h"
+#include "render/video/video.h"
+#include "render/video/video_io.h"
 
 namespace geodrive {
 namespace diffusion {
@@ -385,14 +387,10 @@ int RunGenerate(const GenerateArgs& a) {
 
 }  // namespace
 
-// Registers `generate` on the geodrive-diffusion CLI; `run` is set when it is
-// chosen.
-void AddGenerateCommand(CLI::App* app, std::function<int()>* run) {
+// The `generate` subcommand of geodrive-diffusion.
+CommandRunner SetupGenerate(CLI::App& sub) {
   auto a = std::make_shared<GenerateArgs>();
-  CLI::App* g = app->add_subcommand(
-      "generate",
-      "Generate a video from a first frame and a trajectory: condition render, "
-      "VAE encode, sample, VAE decode; writes MP4 + preview PNG");
+  CLI::App* g = &sub;
   g->add_option("--image", a->image,
                 "first frame (RGB image; with --geometry the default is the "
                 "folder's frame_0000.png)");
@@ -454,8 +452,15 @@ void AddGenerateCommand(CLI::App* app, std::function<int()>* run) {
       ->capture_default_str();
   g->add_option("--fps", a->fps, "video frame rate")->capture_default_str();
   g->add_flag("--no-progress", a->no_progress, "no progress bar");
-  g->callback([run, a] { *run = [a] { return RunGenerate(*a); }; });
+  return [a] { return RunGenerate(*a); };
 }
+
+GEODRIVE_REGISTER_COMMAND(
+    generate,
+    "generate",
+    "Generate a video from a first frame and a trajectory: condition render, "
+    "VAE encode, sample, VAE decode; writes MP4 + preview PNG",
+    SetupGenerate);
 
 }  // namespace diffusion
 }  // namespace geodrive

@@ -6,8 +6,8 @@
 #include <random>
 #include <utility>
 
-#include "eval/video_io.h"
 #include "geometry/util/status.h"
+#include "render/video/video_io.h"
 
 namespace geodrive {
 namespace diffusion {

@@ -102,6 +102,93 @@ const std::vector<std::string>& SafetensorsDtypeNames() {
   return names;
 }
 
+namespace {
+
+// One tensor record of the header, checked against the data buffer.
+SafetensorsEntry ParseTensorEntry(const std::string& path,
+                                  const std::string& name,
+                                  const json& v,
+                                  uint64_t buffer_size) {
+  if (!v.is_object() || !v.contains("dtype") || !v.contains("shape") ||
+      !v.contains("data_offsets")) {
+    ThrowInputError(path, "tensor '", name,
+                    "' needs dtype, shape and data_offsets");
+  }
+  SafetensorsEntry e;
+  e.name = name;
+  e.file = path;
+  if (!v["dtype"].is_string())
+    ThrowInputError(path, "tensor '", name, "' dtype is not a string");
+  e.dtype = v["dtype"].get<std::string>();
+  const DtypeInfo* dt = FindDtype(e.dtype);
+  if (dt == nullptr) {
+    ThrowInputError(path, "tensor '", name, "' has unsupported dtype '",
+                    e.dtype,
+                    "' (supported: F64 F32 F16 BF16 I64 I32 I16 I8 U8 BOOL)");
+  }
+  if (!v["shape"].is_array())
+    ThrowInputError(path, "tensor '", name, "' shape is not a list");
+  uint64_t numel = 1;
+  bool overflow = false;
+  for (const auto& d : v["shape"]) {
+    uint64_t dim;
+    if (!AsNonNegative(d, &dim)) {
+      ThrowInputError(path, "tensor '", name, "' has an invalid shape entry ",
+                      d.dump());
+    }
+    e.shape.push_back(static_cast<int64_t>(dim));
+    overflow |= __builtin_mul_overflow(numel, dim, &numel);
+  }
+  const json& off = v["data_offsets"];
+  if (!off.is_array() || off.size() != 2 || !AsNonNegative(off[0], &e.begin) ||
+      !AsNonNegative(off[1], &e.end)) {
+    ThrowInputError(path, "tensor '", name,
+                    "' data_offsets must be two non-negative integers");
+  }
+  if (e.end < e.begin)
+    ThrowInputError(path, "tensor '", name, "' has data_offsets end < begin");
+  if (e.end > buffer_size) {
+    ThrowInputError(path, "tensor '", name, "' data_offsets [", e.begin, ", ",
+                    e.end, ") lie outside the ", buffer_size,
+                    "-byte data buffer");
+  }
+  uint64_t bytes = 0;
+  overflow |= __builtin_mul_overflow(numel, static_cast<uint64_t>(dt->itemsize),
+                                     &bytes);
+  if (overflow || bytes != e.end - e.begin) {
+    ThrowInputError(path, "tensor '", name, "' of dtype ", e.dtype,
+                    " and shape ", ShapeString(e.shape), " needs ",
+                    overflow ? std::string("too many") : std::to_string(bytes),
+                    " bytes but data_offsets span ", e.end - e.begin);
+  }
+  return e;
+}
+
+// The tensors (sorted by offset) tile the data buffer exactly: no overlap, no
+// hole, no trailing bytes.
+void CheckContiguous(const std::string& path,
+                     const std::vector<SafetensorsEntry>& entries,
+                     uint64_t buffer_size) {
+  uint64_t cursor = 0;
+  for (const auto& e : entries) {
+    if (e.begin < cursor) {
+      ThrowInputError(path, "tensor '", e.name, "' data_offsets [", e.begin,
+                      ", ", e.end, ") overlap the previous tensor");
+    }
+    if (e.begin > cursor) {
+      ThrowInputError(path, "data buffer has a hole at bytes [", cursor, ", ",
+                      e.begin, ") before tensor '", e.name, "'");
+    }
+    cursor = e.end;
+  }
+  if (cursor != buffer_size) {
+    ThrowInputError(path, "data buffer has ", buffer_size - cursor,
+                    " trailing bytes not covered by any tensor");
+  }
+}
+
+}  // namespace
+
 SafetensorsFile::SafetensorsFile(const std::string& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd_ < 0)
@@ -182,82 +269,13 @@ SafetensorsFile::SafetensorsFile(const std::string& path) : path_(path) {
         }
         continue;
       }
-      if (!v.is_object() || !v.contains("dtype") || !v.contains("shape") ||
-          !v.contains("data_offsets")) {
-        ThrowInputError(path, "tensor '", name,
-                        "' needs dtype, shape and data_offsets");
-      }
-      SafetensorsEntry e;
-      e.name = name;
-      e.file = path;
-      if (!v["dtype"].is_string())
-        ThrowInputError(path, "tensor '", name, "' dtype is not a string");
-      e.dtype = v["dtype"].get<std::string>();
-      const DtypeInfo* dt = FindDtype(e.dtype);
-      if (dt == nullptr) {
-        ThrowInputError(
-            path, "tensor '", name, "' has unsupported dtype '", e.dtype,
-            "' (supported: F64 F32 F16 BF16 I64 I32 I16 I8 U8 BOOL)");
-      }
-      if (!v["shape"].is_array())
-        ThrowInputError(path, "tensor '", name, "' shape is not a list");
-      uint64_t numel = 1;
-      bool overflow = false;
-      for (const auto& d : v["shape"]) {
-        uint64_t dim;
-        if (!AsNonNegative(d, &dim)) {
-          ThrowInputError(path, "tensor '", name,
-                          "' has an invalid shape entry ", d.dump());
-        }
-        e.shape.push_back(static_cast<int64_t>(dim));
-        overflow |= __builtin_mul_overflow(numel, dim, &numel);
-      }
-      const json& off = v["data_offsets"];
-      if (!off.is_array() || off.size() != 2 ||
-          !AsNonNegative(off[0], &e.begin) || !AsNonNegative(off[1], &e.end)) {
-        ThrowInputError(path, "tensor '", name,
-                        "' data_offsets must be two non-negative integers");
-      }
-      if (e.end < e.begin)
-        ThrowInputError(path, "tensor '", name,
-                        "' has data_offsets end < begin");
-      if (e.end > buffer_size) {
-        ThrowInputError(path, "tensor '", name, "' data_offsets [", e.begin,
-                        ", ", e.end, ") lie outside the ", buffer_size,
-                        "-byte data buffer");
-      }
-      uint64_t bytes = 0;
-      overflow |= __builtin_mul_overflow(
-          numel, static_cast<uint64_t>(dt->itemsize), &bytes);
-      if (overflow || bytes != e.end - e.begin) {
-        ThrowInputError(
-            path, "tensor '", name, "' of dtype ", e.dtype, " and shape ",
-            ShapeString(e.shape), " needs ",
-            overflow ? std::string("too many") : std::to_string(bytes),
-            " bytes but data_offsets span ", e.end - e.begin);
-      }
-      entries_.push_back(std::move(e));
+      entries_.push_back(ParseTensorEntry(path, name, v, buffer_size));
     }
     std::sort(entries_.begin(), entries_.end(),
               [](const auto& a, const auto& b) {
                 return a.begin != b.begin ? a.begin < b.begin : a.end < b.end;
               });
-    uint64_t cursor = 0;
-    for (const auto& e : entries_) {
-      if (e.begin < cursor) {
-        ThrowInputError(path, "tensor '", e.name, "' data_offsets [", e.begin,
-                        ", ", e.end, ") overlap the previous tensor");
-      }
-      if (e.begin > cursor) {
-        ThrowInputError(path, "data buffer has a hole at bytes [", cursor, ", ",
-                        e.begin, ") before tensor '", e.name, "'");
-      }
-      cursor = e.end;
-    }
-    if (cursor != buffer_size) {
-      ThrowInputError(path, "data buffer has ", buffer_size - cursor,
-                      " trailing bytes not covered by any tensor");
-    }
+    CheckContiguous(path, entries_, buffer_size);
     for (size_t i = 0; i < entries_.size(); ++i) index_[entries_[i].name] = i;
   } catch (...) {
     if (map_ != nullptr) ::munmap(const_cast<uint8_t*>(map_), map_size_);

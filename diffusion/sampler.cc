@@ -74,7 +74,7 @@ void SampleOptions::Check() const {
                        "chunk sizes must be positive");
 }
 
-std::string SampleResult::Summary() const {
+std::string SampleResult::BriefReport() const {
   std::ostringstream os;
   os << "sampled " << steps << " steps in " << seconds << " s"
      << (guidance_used ? " with classifier-free guidance" : " without guidance")
@@ -338,7 +338,7 @@ std::string CheckWeights(const std::string& config,
   std::ostringstream os;
   LoadReport r = compare(weights, BackboneParamSpecs(cfg), "");
   *ok = r.ok();
-  os << "backbone " << r.Summary();
+  os << "backbone " << r.BriefReport();
   std::string bpath = branch_weights, prefix;
   if (bpath.empty() && HasPrefix(weights, "branch.")) {
     bpath = weights;
@@ -347,7 +347,7 @@ std::string CheckWeights(const std::string& config,
   if (!bpath.empty()) {
     LoadReport b = compare(bpath, BranchParamSpecs(cfg), prefix);
     *ok = *ok && b.ok();
-    os << "\nencoder " << b.Summary();
+    os << "\nencoder " << b.BriefReport();
   }
   return os.str();
 }

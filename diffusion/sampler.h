@@ -43,7 +43,7 @@ struct SampleResult {
   int steps = 0;
   bool guidance_used = false;
   double seconds = 0;
-  std::string Summary() const;
+  std::string BriefReport() const;
 };
 
 // Runs the sampler and writes `out`. Deterministic for a seed and thread count.

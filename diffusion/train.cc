@@ -236,7 +236,7 @@ void TrainOptions::Check() const {
                        "chunk sizes must be positive");
 }
 
-std::string TrainResult::Summary() const {
+std::string TrainResult::BriefReport() const {
   std::ostringstream os;
   os << "trained steps " << start_step << " -> " << end_step << " in "
      << seconds << " s";

@@ -83,7 +83,7 @@ struct TrainResult {
   std::vector<TrainLogRow> log;
   std::string last_checkpoint;
   double seconds = 0;
-  std::string Summary() const;
+  std::string BriefReport() const;
 };
 
 // The trainer state; the loop (Train) and the tests drive it step by step.

@@ -4,20 +4,18 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "apps/cli/cli.h"
 #include "diffusion/train.h"
 
 namespace geodrive {
 namespace diffusion {
+namespace {
 
-void AddTrainCommand(CLI::App* app, std::function<int()>* run) {
+CommandRunner SetupTrain(CLI::App& sub) {
   // The options live as long as the process (the callback runs after parse).
   static TrainOptions o;
   static bool no_progress = false, no_cache = false, no_image_noise = false;
-  CLI::App* cmd = app->add_subcommand(
-      "train",
-      "Train the condition encoder on build-dataset pairs (frozen backbone and "
-      "VAE, v-prediction MSE, AdamW); writes checkpoint-<step>/ and "
-      "train_log.{csv,json}");
+  CLI::App* cmd = &sub;
   cmd->add_option("--pairs", o.pairs, "train manifest.jsonl (build-dataset)")
       ->required();
   cmd->add_option("--val-pairs", o.val_pairs,
@@ -78,16 +76,24 @@ void AddTrainCommand(CLI::App* app, std::function<int()>* run) {
                   "max attention-score memory per chunk (MB)")
       ->capture_default_str();
   cmd->add_flag("--no-progress", no_progress, "no progress line");
-  cmd->callback([run] {
-    *run = [] {
-      o.progress = !no_progress;
-      o.cache_latents = !no_cache;
-      o.image_noise = !no_image_noise;
-      std::cout << Train(o).Summary() << std::endl;
-      return 0;
-    };
-  });
+  return [] {
+    o.progress = !no_progress;
+    o.cache_latents = !no_cache;
+    o.image_noise = !no_image_noise;
+    std::cout << Train(o).BriefReport() << std::endl;
+    return 0;
+  };
 }
+
+}  // namespace
+
+GEODRIVE_REGISTER_COMMAND(
+    train,
+    "train",
+    "Train the condition encoder on build-dataset pairs (frozen backbone and "
+    "VAE, v-prediction MSE, AdamW); writes checkpoint-<step>/ and "
+    "train_log.{csv,json}",
+    SetupTrain);
 
 }  // namespace diffusion
 }  // namespace geodrive

@@ -46,7 +46,7 @@ void FrechetOptions::Check() const {
                        "frechet: eps must be >= 0");
 }
 
-std::string FrechetResult::Summary() const {
+std::string FrechetResult::BriefReport() const {
   std::ostringstream os;
   os << "Frechet distance " << distance << " (mean term " << mean_term
      << ", trace term " << trace_term << (eps_added ? ", eps added" : "")

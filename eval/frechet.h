@@ -40,7 +40,7 @@ struct FrechetResult {
   double trace_sqrt = 0;  // tr sqrt(S1 S2)
   bool eps_added =
       false;  // pytorch-fid's retry with 1e-6 I added to both covariances
-  std::string Summary() const;
+  std::string BriefReport() const;
 };
 
 struct FrechetOptions {

@@ -541,7 +541,7 @@ void FrameMetricsOptions::Check() const {
                        "frame metrics: num_threads must be >= 0");
 }
 
-std::string VideoScores::Summary() const {
+std::string VideoScores::BriefReport() const {
   std::ostringstream os;
   os << frames.size() << " frames " << width << "x" << height << ": PSNR "
      << mean.psnr_rgb << " dB, SSIM " << mean.ssim_rgb;

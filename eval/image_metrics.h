@@ -107,7 +107,7 @@ struct VideoScores {
   FrameScores mean;
   int width = 0;
   int height = 0;
-  std::string Summary() const;
+  std::string BriefReport() const;
 };
 
 // Compares `pred` with `gt` frame by frame. Throws InputError (naming `what`)

@@ -168,15 +168,10 @@ MeanStd EvalReport::Aggregate(const std::string& metric) const {
   return out;
 }
 
-std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
-                                          const std::string& json_path) {
-  const fs::path base = fs::path(json_path).replace_extension();
-  const std::string csv_path = base.string() + ".csv",
-                    md_path = base.string() + ".md",
-                    png_path = base.string() + ".png";
-  if (fs::path(json_path).has_parent_path()) {
-    fs::create_directories(fs::path(json_path).parent_path());
-  }
+namespace {
+
+// The metrics of `r` that every video has (PSNR/SSIM family).
+std::vector<std::string> PresentImageMetrics(const EvalReport& r) {
   const std::vector<std::string> image_metrics = {"psnr", "ssim", "psnr_y",
                                                   "ssim_y"};
   std::vector<std::string> present;
@@ -188,13 +183,12 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
         std::isfinite(Get(r.videos[0].scores.mean, m)))
       present.push_back(m);
   }
+  return present;
+}
 
-  // ---- JSON ----
-  nlohmann::json j;
-  j["pred"] = r.pred;
-  j["gt"] = r.gt;
-  j["metrics"] = r.metrics;
-  j["conventions"] = {
+// The conventions block of report.json.
+nlohmann::json Conventions(const EvalReport& r) {
+  return {
       {"psnr",
        "10*log10(R^2/MSE) per frame over all channels, float64; identical "
        "frames give " +
@@ -219,6 +213,16 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
       {"fvd",
        "Frechet distance of TorchScript I3D features of whole clips "
        "(common_metrics: /255, short side 224, centre crop, 2x-1)"}};
+}
+
+void WriteReportJson(const EvalReport& r,
+                     const std::vector<std::string>& present,
+                     const std::string& json_path) {
+  nlohmann::json j;
+  j["pred"] = r.pred;
+  j["gt"] = r.gt;
+  j["metrics"] = r.metrics;
+  j["conventions"] = Conventions(r);
   nlohmann::json summary;
   for (const std::string& m : present) {
     const MeanStd s = r.Aggregate(m);
@@ -279,8 +283,12 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
   }
   j["videos"] = videos;
   WriteText(json_path, j.dump(2) + "\n");
+}
 
-  // ---- CSV: one row per video ----
+void WriteReportCsv(const EvalReport& r,
+                    const std::vector<std::string>& present,
+                    const std::string& csv_path) {
+  const bool has_lpips = !r.lpips_model.empty();
   std::ostringstream csv;
   csv << "id,frames,width,height";
   for (const std::string& m : present) csv << "," << m;
@@ -295,8 +303,11 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
     csv << "," << v.pred_path << "," << v.gt_path << "\n";
   }
   WriteText(csv_path, csv.str());
+}
 
-  // ---- Markdown: GeoDrive Table 1 layout ----
+// GeoDrive's Table 1 layout.
+void WriteReportMarkdown(const EvalReport& r, const std::string& md_path) {
+  const bool has_lpips = !r.lpips_model.empty();
   const std::string suffix = r.x100 ? "×10²" : "";
   std::ostringstream md;
   md << "| Model | LPIPS↓ | PSNR↑ | SSIM↑ | FID↓ | FVD↓ | ADE" << suffix
@@ -349,8 +360,10 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
        << ", SSIM-Y " << Fixed(r.Aggregate("ssim_y").mean, 4) << "\n";
   }
   WriteText(md_path, md.str());
+}
 
-  // ---- PNG plot ----
+// Per-frame PSNR/SSIM curves and the trajectories.
+void WriteReportPlot(const EvalReport& r, const std::string& png_path) {
   cv::Mat canvas(720, 1280, CV_8UC3, cv::Scalar(255, 255, 255));
   std::vector<std::vector<double>> psnr, ssim;
   size_t max_frames = 0;
@@ -380,6 +393,24 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
   PlotTrajectories(canvas, cv::Rect(650, 10, 620, 700), r);
   GEODRIVE_CHECK_INPUT(cv::imwrite(png_path, canvas), png_path,
                        ": cannot be written");
+}
+
+}  // namespace
+
+std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
+                                          const std::string& json_path) {
+  const fs::path base = fs::path(json_path).replace_extension();
+  const std::string csv_path = base.string() + ".csv",
+                    md_path = base.string() + ".md",
+                    png_path = base.string() + ".png";
+  if (fs::path(json_path).has_parent_path()) {
+    fs::create_directories(fs::path(json_path).parent_path());
+  }
+  const std::vector<std::string> present = PresentImageMetrics(r);
+  WriteReportJson(r, present, json_path);
+  WriteReportCsv(r, present, csv_path);
+  WriteReportMarkdown(r, md_path);
+  WriteReportPlot(r, png_path);
   return {json_path, csv_path, md_path, png_path};
 }
 

@@ -34,7 +34,7 @@ TrajectoryErrors TrajectoryErrors::Scaled(double f) const {
   return out;
 }
 
-std::string TrajectoryErrors::Summary() const {
+std::string TrajectoryErrors::BriefReport() const {
   std::ostringstream os;
   os << per_frame.size() << " poses, alignment " << ToString(alignment)
      << ": ADE " << ade << ", FDE " << fde << ", RMSE " << rmse << " ("

@@ -47,7 +47,7 @@ struct TrajectoryErrors {
   // A copy with every distance multiplied by `factor` (100 for the paper's
   // x10^2 columns).
   TrajectoryErrors Scaled(double factor) const;
-  std::string Summary() const;
+  std::string BriefReport() const;
 };
 
 // Camera centres (world_from_cam translations) of a trajectory.

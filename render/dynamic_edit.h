@@ -35,6 +35,9 @@
 // naming an unknown instance, or boxes whose frame count differs from the clip,
 // is rejected with InputError. Every skip is listed in
 // DynamicEditSummary::notes.
+//
+// The CLI glue (--boxes, --edit-mode, --remove, --insert, --move) is in
+// render/dynamic_edit_cli.h.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -266,33 +269,5 @@ DynamicEditResult RenderWithDynamicEdits(
     const std::vector<ObjectEdit>& edits,
     const DynamicEditOptions& options,
     const RenderOptions& render_options);
-
-// ---- CLI glue (`geodrive render --boxes FILE [--edit-mode 2d|3d] [--remove
-// ID]...
-//      [--insert ID:FILE]... [--move ID:FILE]...`).
-struct EditCliArgs {
-  std::string boxes_path;
-  std::string edit_mode = "3d";
-  std::vector<std::string> remove;  // instance ids
-  std::vector<std::string>
-      insert;  // "ID:FILE": copy ID along FILE's single box sequence
-  std::vector<std::string>
-      move;  // "ID:FILE": ID follows FILE's single box sequence
-};
-
-// Reads the boxes and edit files named in `args` and turns them into edits;
-// throws InputError naming the argument or file on a problem.
-std::vector<ObjectEdit> ParseEditArgs(const EditCliArgs& args,
-                                      BoxSequences* boxes);
-
-// Reads `args`, then RenderWithDynamicEdits. `frame0_image` (optional) is the
-// 2D crop source.
-DynamicEditResult ApplyEditsAndRender(
-    const EditCliArgs& args,
-    const PointCloud& cloud_in_world,
-    const std::vector<PinholeCamera>& cameras,
-    const std::vector<Rigid3d>& cam_from_world,
-    const RenderOptions& render_options,
-    const cv::Mat& frame0_image = cv::Mat());
 
 }  // namespace geodrive

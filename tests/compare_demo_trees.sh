@@ -1,45 +1,69 @@
 #!/usr/bin/env bash
-# Re-checks "behaviour is unchanged" (issue 17): builds `geodrive` at a base revision (default:
-# 29169f5, the last commit before the clip -> scene seam) in a git worktree, runs the demo's main
-# job (scripts/demo.sh steps 1 and 3: synth --scenes 2 --seed 7 --monst3r, then build-dataset)
-# with the base binary and with this tree's binary, and compares the two output trees byte for
-# byte: every pair folder file, manifest.jsonl and failures.jsonl. report.html is left out (it
-# holds run timings). Exit 0 when identical, 1 with the differing files listed otherwise.
+# Re-checks "behaviour is unchanged" (issue 17, the clip -> scene seam): builds `geodrive` at a
+# base revision in a git worktree, runs the demo's main job (scripts/demo.sh steps 1 and 3:
+# `synth --scenes 2 --seed 7 --monst3r`, then `build-dataset`) with it and with this tree's
+# binary, and compares the two output trees: the synthetic dataset byte for byte, every pair
+# folder file, manifest.jsonl and failures.jsonl byte for byte, report.html left out (run timings)
+# and meta.json as JSON without the fields later issues added or changed on purpose
+# (tests/compare_demo_meta.py lists them). With --exact, meta.json is compared byte for byte too
+# (true between 29169f5 and the seam itself, before issue 18's metadata changes).
+# Exit 0 when the trees agree, 1 with the differing files listed otherwise.
 #
-# Usage: bash tests/compare_demo_trees.sh [BASE_REV] [WORK_DIR]
-#   NEW binary: ./build/apps/geodrive (build it first: cmake --build build --target geodrive)
+# Usage: bash tests/compare_demo_trees.sh [--exact] [OLD_REV [NEW_REV]]
+#   OLD_REV  default 29169f5, the last commit before the seam
+#   NEW_REV  default "." = this working tree's ./build/apps/geodrive (build it first), or a
+#            revision to build in a worktree
+# Environment: WORK_DIR (default /tmp/geodrive_compare_demo).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-base_rev=${1:-29169f5}
-work=${2:-/tmp/geodrive_compare_demo}
-new_bin=$PWD/build/apps/geodrive
-[[ -x "$new_bin" ]] || { echo "build ./build/apps/geodrive first" >&2; exit 2; }
+exact=0
+if [[ "${1:-}" == "--exact" ]]; then exact=1; shift; fi
+old_rev=${1:-29169f5}
+new_rev=${2:-.}
+work=${WORK_DIR:-/tmp/geodrive_compare_demo}
 mkdir -p "$work"
-base_src="$work/base-src"
-if [[ ! -d "$base_src" ]]; then
-  git worktree add --detach "$base_src" "$base_rev" > /dev/null
-fi
-if [[ ! -x "$base_src/build/apps/geodrive" ]]; then
-  cmake -S "$base_src" -B "$base_src/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-    -DGEODRIVE_BUILD_TESTS=OFF > /dev/null
-  cmake --build "$base_src/build" --target geodrive
-fi
+
+binary_at() {  # binary_at REV -> prints the path of geodrive built at REV
+  local rev=$1
+  if [[ "$rev" == "." ]]; then
+    [[ -x build/apps/geodrive ]] || { echo "build ./build/apps/geodrive first" >&2; exit 2; }
+    echo "$PWD/build/apps/geodrive"
+    return
+  fi
+  local src="$work/src-$(git rev-parse --short "$rev")"
+  if [[ ! -d "$src" ]]; then
+    git worktree add --detach "$src" "$rev" > /dev/null 2>&1
+  fi
+  if [[ ! -x "$src/build/apps/geodrive" ]]; then
+    cmake -S "$src" -B "$src/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+      -DGEODRIVE_BUILD_TESTS=OFF > "$work/cmake-$rev.log" 2>&1
+    cmake --build "$src/build" --target geodrive > "$work/build-$rev.log" 2>&1
+  fi
+  echo "$src/build/apps/geodrive"
+}
+
 run() {  # run BINARY OUT
   rm -rf "$2"
   "$1" synth --out "$2/synth" --scenes 2 --seed 7 --monst3r > "$2.log" 2>&1
   "$1" build-dataset --dataroot "$2/synth" --version v1.0-mini --monst3r "$2/synth/monst3r" \
     --out "$2/pairs" --threads "$(nproc)" --quiet >> "$2.log" 2>&1
 }
-run "$base_src/build/apps/geodrive" "$work/base"
+
+old_bin=$(binary_at "$old_rev")
+new_bin=$(binary_at "$new_rev")
+run "$old_bin" "$work/old"
 run "$new_bin" "$work/new"
 status=0
-if ! diff -r -q -x report.html "$work/base/pairs" "$work/new/pairs"; then status=1; fi
-if ! diff -r -q "$work/base/synth" "$work/new/synth" > /dev/null; then
-  echo "synthetic datasets differ"; status=1
+if [[ $exact -eq 1 ]]; then
+  diff -r -q -x report.html "$work/old/pairs" "$work/new/pairs" || status=1
+else
+  /usr/bin/python3 tests/compare_demo_meta.py "$work/old/pairs" "$work/new/pairs" || status=1
 fi
-files=$(find "$work/new/pairs" -type f ! -name report.html | wc -l)
+diff -r -q "$work/old/synth" "$work/new/synth" || status=1
+files=$(find "$work/new/pairs" "$work/new/synth" -type f ! -name report.html | wc -l)
 pairs=$(wc -l < "$work/new/pairs/manifest.jsonl")
 if [[ $status -eq 0 ]]; then
-  echo "identical: $pairs pairs, $files files (report.html aside), base $base_rev vs $(git rev-parse --short HEAD)"
+  echo "identical$([[ $exact -eq 1 ]] && echo ' (byte-exact)'): $pairs pairs, $files files" \
+    "(report.html aside): $old_rev vs $new_rev"
 fi
 exit $status

@@ -5,12 +5,14 @@
 // so that BuildPair reads as the recipe.
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "dataset/build_dataset.h"
 #include "dataset/drive_dataset.h"
 #include "dataset/pairs.h"
+#include "dataset/scene_folders.h"
 #include "dataset/scene_source.h"
 #include "render/boxes.h"
 
@@ -27,7 +29,11 @@ struct StageError : std::runtime_error {
 // What every clip of a run shares.
 struct ClipContext {
   const DriveDataset* dataset = nullptr;
+  // Index of each clip id in the dataset's clip list (upstream scene_idx).
+  const std::map<std::string, int>* clip_index = nullptr;
   const BuildDatasetOptions* options = nullptr;
+  // Per-clip input folders of path-based scene sources; null otherwise.
+  const SceneFolders* folders = nullptr;
 };
 
 // The clip's images: at source size (for sources that colour from them) and
@@ -40,17 +46,21 @@ struct ClipFrames {
 // The condition frames at the output size, with their per-frame quality.
 struct ConditionRender {
   std::vector<cv::Mat> frames;
+  // The frames as the renderer made them, before the resize to the output
+  // size (the released preset: 576x1024), for exports.
+  std::vector<cv::Mat> native_frames;
   std::vector<double> coverage;
-  std::vector<double> psnr_static;
+  std::vector<std::optional<double>> psnr_static;
 };
 
 // Reads and resizes the clip's images (checking them against the camera).
 ClipFrames ReadClipFrames(const DriveClip& clip,
                           const BuildDatasetOptions& options);
-// The clip's scene from the run's scene source (ROOT/<clip id> for sources
-// that read a path).
+// The clip's scene from the run's scene source; `path` is the clip's input
+// folder for sources that read one (SceneFolders), empty otherwise.
 ConditionScene BuildClipScene(const DriveClip& clip,
                               const std::vector<cv::Mat>& images,
+                              const std::string& path,
                               const BuildDatasetOptions& options);
 // Vehicle boxes of the clip: 3D in camera 0's frame (metric scenes only), 2D at
 // the output size from the dataset's own camera poses.
@@ -66,6 +76,14 @@ ConditionRender RenderCondition(const ConditionScene& scene,
 PairMeta MakePairMeta(const DriveClip& clip,
                       const ConditionScene& scene,
                       const BuildDatasetOptions& options);
+// Writes DIR/upstream/render_%d.png as GeoDrive's upstream renderer does:
+// 1024x576 RGB, frame 0 = the real image.
+void WriteUpstreamFrames(const std::string& dir,
+                         const ClipFrames& frames,
+                         const ConditionRender& cond);
+// Rebuilds OUT/geodrive_upstream/ (sample_%06d links and meta.jsonl) from the
+// pair folders that have upstream frames. Returns the number of samples.
+int WriteUpstreamIndex(const std::string& out);
 // Encodes the videos and writes the pair folder into `dir`; fills meta.files.
 void WritePairFolder(const std::string& dir,
                      const ClipFrames& frames,

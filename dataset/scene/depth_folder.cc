@@ -23,7 +23,7 @@
 #include "geometry/pointmap.h"
 #include "geometry/util/json_fields.h"
 #include "geometry/util/status.h"
-#include "render/video.h"
+#include "render/video/video.h"
 
 namespace geodrive {
 namespace {

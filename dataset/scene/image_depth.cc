@@ -22,9 +22,9 @@ class ImageDepthSceneSource : public SceneSource {
                        const SceneSourceOptions&) const override {
     const std::string image_name =
         in.image_path.empty() ? std::string("the image") : in.image_path;
-    const cv::Mat image =
-        in.image.empty() && !in.image_path.empty() ? ReadImageRgb(in.image_path)
-                                                    : in.image;
+    const cv::Mat image = in.image.empty() && !in.image_path.empty()
+                              ? ReadImageRgb(in.image_path)
+                              : in.image;
     GEODRIVE_CHECK_INPUT(!image.empty(), in.path,
                          ": a depth map needs its image (--image)");
     GEODRIVE_CHECK_INPUT(!in.intrinsics_path.empty(), in.path,
@@ -34,7 +34,8 @@ class ImageDepthSceneSource : public SceneSource {
                          depth.cols, "x", depth.rows, " but ", image_name,
                          " is ", image.cols, "x", image.rows);
     ConditionScene scene;
-    scene.camera = ReadIntrinsicsFile(in.intrinsics_path, depth.cols, depth.rows);
+    scene.camera =
+        ReadIntrinsicsFile(in.intrinsics_path, depth.cols, depth.rows);
     scene.has_camera = true;
     scene.cloud = CloudFromDepth(depth, image, scene.camera, Rigid3d());
     scene.anchor = TrajectoryAnchor::kFirstFrame;

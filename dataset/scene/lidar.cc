@@ -128,9 +128,9 @@ class LidarSceneSource : public SceneSource {
         read.push_back(ReadImageRgb(f.image_path));
       images = &read;
     }
-    GEODRIVE_CHECK_INPUT(images->size() == clip.frames.size(), clip.id,
-                         ": ", images->size(), " images for ",
-                         clip.frames.size(), " frames");
+    GEODRIVE_CHECK_INPUT(images->size() == clip.frames.size(), clip.id, ": ",
+                         images->size(), " images for ", clip.frames.size(),
+                         " frames");
     std::vector<int64_t> point_time;
     const PointCloud all = AggregateSweeps(clip, options, &point_time);
     ConditionScene scene;

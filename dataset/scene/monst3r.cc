@@ -7,16 +7,19 @@
 // `generate`, as the released scripts): every pixel of frame 0's depth, in
 // MonST3R's world and units, along pred_traj.txt.
 
+#include "geometry/monst3r.h"
+
 #include <chrono>
+#include <cmath>
 #include <limits>
 
 #include "dataset/lidar_alignment.h"
 #include "dataset/scene/define.h"
 #include "geometry/image_io.h"
-#include "geometry/monst3r.h"
 #include "geometry/pointmap.h"
+#include "geometry/pose_refinement.h"
 #include "geometry/util/status.h"
-#include "render/video.h"
+#include "render/video/video.h"
 
 namespace geodrive {
 namespace {
@@ -51,11 +54,71 @@ SceneScale FitScale(const SceneInputs& in,
   return scale;
 }
 
+// The folder's poses refined by reprojection over static confident pixels
+// (geometry/pose_refinement.h, independent frames); the RMS before and after
+// pooled over every frame's sampled pixels.
+Trajectory RefinePoses(const Monst3rFolder& folder,
+                       const SceneSourceOptions& options,
+                       ConditionScene* scene) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PointmapFilterOptions filter;
+  filter.min_confidence = options.min_confidence;
+  filter.min_depth = 0.0;
+  filter.max_depth = std::numeric_limits<double>::infinity();
+  filter.selection = PixelSelection::kStaticOnly;
+  Monst3rLoadOptions lo;
+  lo.rgb = false;
+  lo.raw_pointmaps = folder.has_raw_pointmaps();
+  std::vector<int> frames(folder.num_frames());
+  for (int i = 0; i < folder.num_frames(); ++i) frames[i] = i;
+  std::vector<PoseRefinementInput> inputs;
+  for (const Monst3rFrame& f : folder.LoadFrames(frames, lo)) {
+    const Pointmap pm = BuildPointmap(f);
+    PoseRefinementInput input;
+    input.frame_index = f.index;
+    input.camera = f.camera;
+    input.initial_world_from_cam = f.world_from_cam;
+    input.points_in_world = f.raw_points_in_world.empty()
+                                ? pm.points_in_world
+                                : f.raw_points_in_world;
+    input.valid_mask = ComputeValidMask(pm, filter);
+    inputs.push_back(std::move(input));
+  }
+  PoseRefinementOptions ro;  // seeded sampling: deterministic
+  const std::vector<PoseRefinementResult> results =
+      RefineClipPoses(inputs, ro, /*joint=*/false);
+  Trajectory refined;
+  double before = 0, after = 0;
+  int64_t n = 0;
+  for (size_t k = 0; k < results.size(); ++k) {
+    const PoseRefinementSummary& s = results[k].summary;
+    refined.Add(folder.trajectory().timestamps[k],
+                s.usable ? results[k].world_from_cam
+                         : folder.trajectory().world_from_cam[k]);
+    if (s.skipped || s.num_residuals == 0) continue;
+    before += s.initial_rms_px * s.initial_rms_px * s.num_residuals;
+    after += (s.usable ? s.final_rms_px : s.initial_rms_px) *
+             (s.usable ? s.final_rms_px : s.initial_rms_px) * s.num_residuals;
+    n += s.num_residuals;
+  }
+  if (n > 0) {
+    scene->reprojection_rms_px_before = std::sqrt(before / n);
+    scene->reprojection_rms_px_after = std::sqrt(after / n);
+  }
+  scene->seconds["refine"] +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+          .count();
+  return refined;
+}
+
 ConditionScene BuildPaper(const SceneInputs& in,
                           const SceneSourceOptions& options,
                           const Monst3rFolder& folder) {
   const std::string& dir = in.path;
   ConditionScene scene;
+  const Trajectory trajectory = options.refine_poses
+                                    ? RefinePoses(folder, options, &scene)
+                                    : folder.trajectory();
   scene.scale = FitScale(in, options, folder, &scene.seconds);
   const bool metric = scene.scale.source == "lidar";
   const double scale = scene.scale.scale;
@@ -80,17 +143,16 @@ ConditionScene BuildPaper(const SceneInputs& in,
                        ": no frame-0 pixel passes the filters");
   // Everything in camera 0's frame (MonST3R world = its first camera, up to
   // noise).
-  Rigid3d world_from_cam0 = folder.trajectory().world_from_cam.front();
+  Rigid3d world_from_cam0 = trajectory.world_from_cam.front();
   world_from_cam0.translation *= scale;
   const Rigid3d cam0_from_world = world_from_cam0.Inverse();
   scene.cloud = in_world;
   for (auto& p : scene.cloud.positions)
     p = (cam0_from_world * p.cast<double>()).cast<float>();
   for (int i = 0; i < folder.num_frames(); ++i) {
-    Rigid3d w = folder.trajectory().world_from_cam[i];
+    Rigid3d w = trajectory.world_from_cam[i];
     w.translation *= scale;
-    scene.trajectory.Add(folder.trajectory().timestamps[i],
-                         cam0_from_world * w);
+    scene.trajectory.Add(trajectory.timestamps[i], cam0_from_world * w);
   }
   scene.camera = folder.cameras().front();
   scene.units = metric ? "metres" : "monst3r";
@@ -147,6 +209,17 @@ class Monst3rSceneSource : public SceneSource {
     if (in.clip && folder.num_frames() != in.clip->num_frames()) {
       ThrowInputError(in.path, "MonST3R folder has ", folder.num_frames(),
                       " frames but the clip has ", in.clip->num_frames());
+    }
+    if (in.clip) {  // MonST3R's 512-long-side resize of the clip's images
+      const PinholeCamera& cam = in.clip->frames.front().camera;
+      const ImageResizeSpec spec =
+          ComputeMonst3rResizeSpec(cam.width, cam.height, 512);
+      if (spec.width != folder.width() || spec.height != folder.height()) {
+        ThrowInputError(in.path, "MonST3R images are ", folder.width(), "x",
+                        folder.height(), " but the clip's ", cam.width, "x",
+                        cam.height, " images map to ", spec.width, "x",
+                        spec.height, " (512 long side): not this clip's folder");
+      }
     }
     ConditionScene scene = options.filter == PointmapFilter::kPaper
                                ? BuildPaper(in, options, folder)

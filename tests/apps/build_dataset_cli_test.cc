@@ -47,7 +47,7 @@ const std::string& World() {
         std::string log;
         const int rc = RunCommand(
             GeodriveBinary() + " synth --out " + d +
-                " --scenes 1 --seed 5 --size 800x450 --duration 6.5 --monst3r",
+                " --scenes 1 --seed 5 --size 450x800 --duration 6.5 --monst3r",
             &log);
         EXPECT_EQ(rc, 0) << log;
       });
@@ -211,6 +211,77 @@ TEST(BuildDatasetCli, BadArgumentsExitTwoWithOneLine) {
       2);
   EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
   EXPECT_NE(log.find("/nonexistent"), std::string::npos) << log;
+}
+
+// The bridges to the tools users run (issue 18): `geodrive clips` says which
+// frames make each clip; MonST3R folders stored under GeoDrive's upstream
+// naming (sample_%06d/reconstruction/, numbered by clips.jsonl) are found
+// through --monst3r-map and give the same pairs as <clip_id>/ folders; and
+// --export geodrive-upstream is read back by a Python mirror of the released
+// train.py loader.
+TEST(BuildDatasetCli, RoundTripClipsUpstreamLayoutAndExport) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("cv2");
+  const std::string base = test::MakeTempDir("cli_round_trip");
+  std::string log;
+  ASSERT_EQ(RunCommand(GeodriveBinary() + " clips --dataroot " + World() +
+                           " --out " + base + "/clips",
+                       &log),
+            0)
+      << log;
+  // Re-file every MonST3R folder as upstream writes it.
+  std::map<std::string, int> index;
+  {
+    std::ifstream in(base + "/clips/clips.jsonl");
+    std::string line;
+    while (std::getline(in, line)) {
+      const auto id_at = line.find("\"clip_id\":\"") + 11;
+      const std::string id = line.substr(id_at, line.find('"', id_at) - id_at);
+      const auto idx_at = line.find("\"index\":") + 8;
+      index[id] = std::stoi(line.substr(idx_at));
+    }
+  }
+  ASSERT_FALSE(index.empty());
+  int moved = 0;
+  for (const auto& e : fs::directory_iterator(World() + "/monst3r")) {
+    const std::string id = e.path().filename().string();
+    ASSERT_TRUE(index.count(id)) << id << " not in clips.jsonl";
+    // The clip's own JSON names its 25 frames, in order, and links them.
+    const std::string clip_json = ReadAll(base + "/clips/" + id + "/clip.json");
+    EXPECT_NE(clip_json.find("\"upstream_sample\""), std::string::npos);
+    EXPECT_TRUE(fs::is_symlink(base + "/clips/" + id + "/images/00024.jpg"));
+    char sample[32];
+    std::snprintf(sample, sizeof(sample), "sample_%06d", index[id]);
+    const fs::path dst = fs::path(base) / "upstream" / sample / "reconstruction";
+    fs::create_directories(dst.parent_path());
+    fs::copy(e.path(), dst, fs::copy_options::recursive);
+    ++moved;
+  }
+  ASSERT_EQ(moved, 3);
+  const std::string out = base + "/pairs";
+  ASSERT_EQ(RunCommand(GeodriveBinary() + " build-dataset --dataroot " +
+                           World() + " --monst3r " + base + "/upstream" +
+                           " --monst3r-map " + base + "/clips/clips.jsonl" +
+                           " --export geodrive-upstream --out " + out +
+                           " --quiet",
+                       &log),
+            0)
+      << log;
+  // Same condition videos as from <clip_id>/ folders (the export changes the
+  // options hash, not the renders).
+  for (const auto& e : fs::directory_iterator(Reference() + "/pairs")) {
+    const std::string id = e.path().filename().string();
+    EXPECT_EQ(ReadAll(out + "/pairs/" + id + "/cond.mp4"),
+              ReadAll(e.path().string() + "/cond.mp4"))
+        << id;
+  }
+  ASSERT_EQ(RunCommand(std::string(test::kDebianPython) +
+                           " " GEODRIVE_SOURCE_DIR
+                           "/tests/dataset/upstream_loader_check.py " +
+                           out + "/geodrive_upstream " + World() + " 3",
+                       &log),
+            0)
+      << log;
+  std::printf("%s", log.c_str());
 }
 
 }  // namespace

@@ -12,7 +12,7 @@
 #include <random>
 
 #include "dataset/drive_dataset.h"
-#include "dataset/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 #include "geometry/npy.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/util/status.h"
@@ -115,8 +115,7 @@ TEST(LidarAlignmentSynthetic, ExactScaleAndTrajectoryWithoutNoise) {
   const std::string root = w.root;
   const std::string id = w.summary.monst3r_clip_ids.front();
   const Monst3rFolder folder = Monst3rFolder::Open(w.root + "/monst3r/" + id);
-  const ClipScaleReport r =
-      FitClipLidarScale(LoadClip(root, id), folder, {});
+  const ClipScaleReport r = FitClipLidarScale(LoadClip(root, id), folder, {});
   ASSERT_TRUE(r.success) << r.message;
   const double truth = TrueMetresPerUnit(w, id);
   const double rel = std::abs(r.clip_fit.scale / truth - 1);

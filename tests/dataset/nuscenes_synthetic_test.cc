@@ -1,5 +1,5 @@
-// The synthetic world (dataset/synthetic_dataset.h) read back through the
-// nuScenes reader: references, chains, rates and layout; 2D boxes from the
+// The synthetic world (dataset/synthetic/synthetic_dataset.h) read back through
+// the nuScenes reader: references, chains, rates and layout; 2D boxes from the
 // reader's box projection against a brute-force ray-cast of the true vehicle
 // pixels.
 
@@ -10,8 +10,8 @@
 
 #include "dataset/nuscenes.h"
 #include "dataset/nuscenes_projection.h"
-#include "dataset/synthetic_dataset.h"
-#include "dataset/synthetic_world.h"
+#include "dataset/synthetic/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_world.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -242,6 +242,34 @@ TEST_F(NuscenesBadInput, MissingTableFile) {
   }
 }
 
+// Real extracts lack attribute, visibility, log and map: the dataset loads,
+// names what is missing once, and references into those tables are unknown.
+TEST_F(NuscenesBadInput, OptionalTablesMayBeMissing) {
+  const std::string root =
+      fx_.Write(test::MakeTempDir("nusc_optional_missing"));
+  for (const char* t : {"attribute", "visibility", "log", "map"})
+    std::filesystem::remove(root + "/v1.0-mini/" + t + ".json");
+  const Nuscenes nusc(Options(root));
+  EXPECT_THAT(nusc.summary().missing_tables,
+              ::testing::ElementsAre("attribute", "visibility", "log", "map"));
+  EXPECT_THAT(nusc.summary().BriefReport(),
+              HasSubstr("optional tables missing (references to them are "
+                        "unknown): attribute visibility log map"));
+  EXPECT_TRUE(nusc.logs().empty());
+  ASSERT_FALSE(nusc.sample_annotations().empty());
+  for (const auto& a : nusc.sample_annotations()) {
+    EXPECT_EQ(a.visibility, kNoIndex);
+    EXPECT_TRUE(a.attributes.empty());
+  }
+  for (const auto& s : nusc.scenes()) EXPECT_EQ(s.log, kNoIndex);
+  // Everything else still resolves: boxes, poses, cameras.
+  EXPECT_FALSE(nusc.samples().empty());
+  EXPECT_EQ(nusc.sample_annotations().size(),
+            Nuscenes(Options(fx_.Write(test::MakeTempDir("nusc_optional_all"))))
+                .sample_annotations()
+                .size());
+}
+
 TEST_F(NuscenesBadInput, TruncatedJson) {
   const std::string root = fx_.Write(test::MakeTempDir("nusc_bad_truncated"));
   const std::string path = root + "/v1.0-mini/sample_data.json";

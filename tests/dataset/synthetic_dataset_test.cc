@@ -2,7 +2,7 @@
 // ground truth. Tables are parsed with nlohmann directly (independent of the
 // nuScenes reader).
 
-#include "dataset/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

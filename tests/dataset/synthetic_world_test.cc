@@ -1,7 +1,7 @@
 // Ground-truth properties of the synthetic world itself (renderer, lidar,
 // motion scripts).
 
-#include "dataset/synthetic_world.h"
+#include "dataset/synthetic/synthetic_world.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <cmath>
 #include <iostream>
 
-#include "dataset/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 

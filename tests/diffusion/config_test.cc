@@ -165,7 +165,7 @@ TEST(DiffusionConfig, LoadReportListsMissingUnexpectedMismatched) {
   EXPECT_EQ(r.unexpected, (std::vector<std::string>{"z"}));
   ASSERT_EQ(r.mismatched.size(), 1u);
   EXPECT_EQ(r.mismatched[0], "b: file [3, 4] vs model [3, 3]");
-  EXPECT_NE(r.Summary().find("1 missing, 1 unexpected, 1 shape-mismatched"),
+  EXPECT_NE(r.BriefReport().find("1 missing, 1 unexpected, 1 shape-mismatched"),
             std::string::npos);
   EXPECT_TRUE(CompareStateDict("f", expected, expected).ok());
 }

@@ -12,13 +12,13 @@
 #include <string>
 
 #include "dataset/pairs.h"
-#include "eval/video_io.h"
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_io.h"
 #include "geometry/trajectory_json.h"
+#include "render/video/video_io.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -119,8 +119,8 @@ TEST(DiffusionModel, LoaderRoundTripExactAndReport) {
   const Weights b2 = LoadWeights(path, BackboneParamSpecs(c), "", true, &rb);
   const Weights r2 =
       LoadWeights(path, BranchParamSpecs(c), "branch.", true, &rr);
-  EXPECT_TRUE(rb.ok() && rb.unexpected.empty()) << rb.Summary();
-  EXPECT_TRUE(rr.ok() && rr.unexpected.empty()) << rr.Summary();
+  EXPECT_TRUE(rb.ok() && rb.unexpected.empty()) << rb.BriefReport();
+  EXPECT_TRUE(rr.ok() && rr.unexpected.empty()) << rr.BriefReport();
   EXPECT_EQ(rb.matched, static_cast<int64_t>(BackboneParamSpecs(c).size()));
   for (const auto& name : backbone.order) {
     EXPECT_TRUE(at::equal(b2.Get(name), backbone.Get(name))) << name;

@@ -12,9 +12,9 @@
 #include <set>
 
 #include "dataset/build_dataset.h"
-#include "dataset/synthetic_dataset.h"
-#include "eval/video_io.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 #include "geometry/util/status.h"
+#include "render/video/video_io.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -16,9 +16,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "eval/frechet.h"
-#include "eval/video_io.h"
 #include "geometry/npy.h"
 #include "geometry/util/status.h"
+#include "render/video/video_io.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -10,9 +10,9 @@
 
 #include "eval/deep_metrics.h"
 #include "eval/image_metrics.h"
-#include "eval/video_io.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/status.h"
+#include "render/video/video_io.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {

@@ -10,9 +10,10 @@
 #include <set>
 #include <string>
 
+#include "apps/cli/edit_args.h"
 #include "geometry/point_cloud_io.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_json.h"
+#include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 #include "tests/render/edit_test_scene.h"
 

@@ -7,7 +7,7 @@
 
 #include <cstdio>
 
-#include "dataset/synthetic_world.h"
+#include "dataset/synthetic/synthetic_world.h"
 #include "render/renderer.h"
 #include "tests/common/test_util.h"
 #include "tests/render/render_test_util.h"

@@ -1,4 +1,4 @@
-#include "render/video.h"
+#include "render/video/video.h"
 
 #include <gtest/gtest.h>
 

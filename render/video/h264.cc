@@ -1,4 +1,4 @@
-#include "render/video_h264.h"
+#include "render/video/h264.h"
 
 extern "C" {
 #include <libavcodec/avcodec.h>

@@ -1,5 +1,5 @@
 #pragma once
-// Writes the synthetic world (dataset/synthetic_world.h) as a real
+// Writes the synthetic world (dataset/synthetic/synthetic_world.h) as a real
 // nuScenes-format dataset (13 JSON tables, samples/ and sweeps/ with CAM_*
 // JPEGs and LIDAR_TOP .pcd.bin, map masks) plus MonST3R-format outputs for
 // 25-frame CAM_FRONT clips and a ground-truth sidecar per clip. Layout and
@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "dataset/synthetic_world.h"
+#include "dataset/synthetic/synthetic_world.h"
 #include "geometry/camera.h"
 #include "geometry/rigid3.h"
 

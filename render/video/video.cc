@@ -1,4 +1,4 @@
-#include "render/video.h"
+#include "render/video/video.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -8,7 +8,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "geometry/util/status.h"
-#include "render/video_h264.h"
+#include "render/video/h264.h"
 
 namespace geodrive {
 namespace {

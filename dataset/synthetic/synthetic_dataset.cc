@@ -1,4 +1,4 @@
-#include "dataset/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_dataset.h"
 
 #include <algorithm>
 #include <charconv>
@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "dataset/clip_id.h"
 #include "geometry/image_io.h"
@@ -722,165 +723,239 @@ struct MonstClipContext {
   std::vector<std::string> frame_tokens;  // sample_data tokens
 };
 
-void WriteMonst3rClip(const MonstClipContext& c) {
+// What every frame of one MonST3R clip shares.
+struct Monst3rClipSetup {
+  fs::path dir, gt_dir;
+  ImageResizeSpec spec;
+  PinholeCamera cam;
+  Rigid3d ego_from_cam;
+  uint64_t clip_key = 0;
+  double units_per_metre = 0;
+  Rigid3d global_from_cam0, cam0_from_global;
+  cv::Mat kernel;  // mask dilation
+};
+
+Monst3rClipSetup MakeMonst3rClipSetup(const MonstClipContext& c) {
   const SyntheticDatasetOptions& o = *c.o;
-  const fs::path dir = c.root / "monst3r" / c.clip_id;
-  const fs::path gt_dir = c.root / "monst3r_gt" / c.clip_id;
-  MakeDirs(dir);
-  if (o.monst3r_write_true_depth) MakeDirs(gt_dir);
-  const ImageResizeSpec spec =
-      ComputeMonst3rResizeSpec(o.image_width, o.image_height);
-  const PinholeCamera cam =
-      SyntheticMonst3rCamera(o.image_width, o.image_height);
-  const int W = cam.width, H = cam.height;
-  const Rigid3d ego_from_cam = SyntheticEgoFromSensor("CAM_FRONT");
+  Monst3rClipSetup setup;
+  setup.dir = c.root / "monst3r" / c.clip_id;
+  setup.gt_dir = c.root / "monst3r_gt" / c.clip_id;
+  setup.spec = ComputeMonst3rResizeSpec(o.image_width, o.image_height);
+  setup.cam = SyntheticMonst3rCamera(o.image_width, o.image_height);
+  setup.ego_from_cam = SyntheticEgoFromSensor("CAM_FRONT");
   const auto& ts = c.tl->channel_us.at("CAM_FRONT");
-  const uint64_t clip_key =
+  setup.clip_key =
       Mix64(o.seed ^ Mix64(static_cast<uint64_t>(c.scene_index) * 7919 +
                            static_cast<uint64_t>(c.start)));
-  const double units_per_metre =
+  setup.units_per_metre =
       o.monst3r_scale_min +
-      (o.monst3r_scale_max - o.monst3r_scale_min) * U01(clip_key);
+      (o.monst3r_scale_max - o.monst3r_scale_min) * U01(setup.clip_key);
+  setup.global_from_cam0 =
+      c.world->GlobalFromEgo(c.tl->Seconds(ts[c.start])) * setup.ego_from_cam;
+  setup.cam0_from_global = setup.global_from_cam0.Inverse();
+  setup.kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+  return setup;
+}
 
-  const Rigid3d global_from_cam0 =
-      c.world->GlobalFromEgo(c.tl->Seconds(ts[c.start])) * ego_from_cam;
-  const Rigid3d cam0_from_global = global_from_cam0.Inverse();
-  std::string traj, intr;
-  nlohmann::ordered_json gt_frames = nlohmann::ordered_json::array();
-  std::vector<float> depth_m(static_cast<size_t>(W) * H), conf(W * H),
-      init_conf(W * H);
-  cv::Mat mask(H, W, CV_8UC1), enlarged;
-  const cv::Mat kernel =
-      cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
-  int64_t num_outliers = 0;
-  for (int i = 0; i < kSyntheticClipLength; ++i) {
-    const int j = c.start + i;
-    const double t = c.tl->Seconds(ts[j]);
-    const Rigid3d global_from_cam = c.world->GlobalFromEgo(t) * ego_from_cam;
-    const Rigid3d world_from_cam =
-        cam0_from_global * global_from_cam;  // metres
-    Rigid3d pred = world_from_cam;
-    if (i > 0) {
-      const uint64_t k = clip_key ^ Mix64(1000 + i);
-      pred.rotation = Perturb(pred.rotation, o.monst3r_pose_noise_deg, k);
-      if (o.monst3r_pose_noise_m > 0) {
-        pred.translation +=
-            o.monst3r_pose_noise_m *
-            Eigen::Vector3d(Normal(k + 11), Normal(k + 12), Normal(k + 13));
-      }
+// MonST3R's predicted pose of frame i: the true pose with the configured noise
+// (none on frame 0, the world origin).
+Rigid3d Monst3rPredictedPose(const SyntheticDatasetOptions& o,
+                             uint64_t clip_key,
+                             int i,
+                             const Rigid3d& world_from_cam) {
+  Rigid3d pred = world_from_cam;
+  if (i > 0) {
+    const uint64_t k = clip_key ^ Mix64(1000 + i);
+    pred.rotation = Perturb(pred.rotation, o.monst3r_pose_noise_deg, k);
+    if (o.monst3r_pose_noise_m > 0) {
+      pred.translation +=
+          o.monst3r_pose_noise_m *
+          Eigen::Vector3d(Normal(k + 11), Normal(k + 12), Normal(k + 13));
     }
-    traj += PyFloat(static_cast<double>(i));
-    const Eigen::Vector3d tp = pred.translation * units_per_metre;
-    for (int a = 0; a < 3; ++a) traj += " " + PyFloat(tp[a]);
-    const Eigen::Quaterniond q = pred.rotation.normalized();
-    traj += " " + PyFloat(q.w()) + " " + PyFloat(q.x()) + " " + PyFloat(q.y()) +
-            " " + PyFloat(q.z()) + "\n";
-    intr += Fmt6(cam.fx) + " " + Fmt6(0.0) + " " + Fmt6(cam.cx) + " " +
-            Fmt6(0.0) + " " + Fmt6(cam.fy) + " " + Fmt6(cam.cy) + " " +
-            Fmt6(0.0) + " " + Fmt6(0.0) + " " + Fmt6(1.0) + "\n";
-
-    // Depth, confidence, masks at the MonST3R resolution.
-    const RenderedView view = c.world->RenderCamera(cam, global_from_cam, t);
-    std::vector<bool> moving(c.world->NumVehicles() + 1, false);
-    for (int v = 0; v < c.world->NumVehicles(); ++v)
-      moving[v + 1] = c.world->Vehicle(v, t).moving;
-    std::vector<float> depth_units(static_cast<size_t>(W) * H);
-    for (int y = 0; y < H; ++y) {
-      const float* dr = view.depth.ptr<float>(y);
-      const uint16_t* ir = view.instance.ptr<uint16_t>(y);
-      uint8_t* mr = mask.ptr<uint8_t>(y);
-      for (int x = 0; x < W; ++x) {
-        const size_t p = static_cast<size_t>(y) * W + x;
-        const uint64_t key =
-            clip_key ^ Mix64((static_cast<uint64_t>(i) << 40) ^ p);
-        const uint16_t inst = ir[x];
-        const bool sky = inst == kSkyInstance;
-        const bool dyn = !sky && inst != kStaticInstance && moving[inst];
-        mr[x] = dyn ? 255 : 0;
-        depth_m[p] = dr[x];
-        double d = sky ? 500.0 : dr[x];
-        double raw = sky ? 1.02 : 1.0 + 30.0 * std::exp(-d / 40.0);
-        if (dyn) raw = 1.0 + 0.5 * (raw - 1.0);
-        if (o.monst3r_depth_noise > 0) {
-          d *= std::max(0.05, 1.0 + o.monst3r_depth_noise * Normal(key));
-        }
-        bool outlier = false;
-        if (o.monst3r_outlier_fraction > 0 &&
-            U01(key ^ 0x0F0F0F0F0F0Full) < o.monst3r_outlier_fraction) {
-          outlier = true;
-          ++num_outliers;
-          d *= 0.5 + 1.5 * U01(key ^ 0x1234567ull);
-          raw = 1.0 + 0.3 * U01(key ^ 0x7654321ull) + 0.01;
-        }
-        depth_units[p] = static_cast<float>(d * units_per_metre);
-        init_conf[p] = static_cast<float>(std::log(raw));
-        conf[p] = outlier
-                      ? -std::numeric_limits<float>::infinity()
-                      : static_cast<float>(std::log(1.0 + 0.8 * (raw - 1.0)));
-      }
-    }
-    char name[64];
-    std::snprintf(name, sizeof(name), "frame_%04d.npy", i);
-    WriteNpy((dir / name).string(),
-             NpyArray::Float32({H, W}, depth_units.data()));
-    WriteNpy((dir / ("conf_" + std::to_string(i) + ".npy")).string(),
-             NpyArray::Float32({H, W}, conf.data()));
-    WriteNpy((dir / ("init_conf_" + std::to_string(i) + ".npy")).string(),
-             NpyArray::Float32({H, W}, init_conf.data()));
-    WriteImageRgb(
-        (dir / ("dynamic_mask_" + std::to_string(i) + ".png")).string(), mask);
-    cv::dilate(mask, enlarged, kernel);
-    WriteImageRgb(
-        (dir / ("enlarged_dynamic_mask_" + std::to_string(i) + ".png"))
-            .string(),
-        enlarged);
-    // RGB: the camera JPEG as MonST3R loads it (resize, centre crop).
-    {
-      const cv::Mat rgb = ReadImageRgb((c.root / c.frame_files[i]).string());
-      cv::Mat resized;
-      const bool down = spec.resized_width < o.image_width;
-      cv::resize(rgb, resized,
-                 cv::Size(spec.resized_width, spec.resized_height), 0, 0,
-                 down ? cv::INTER_AREA : cv::INTER_CUBIC);
-      const cv::Mat cropped = resized(cv::Rect(spec.crop_left, spec.crop_top,
-                                               spec.width, spec.height))
-                                  .clone();
-      std::snprintf(name, sizeof(name), "frame_%04d.png", i);
-      WriteImageRgb((dir / name).string(), cropped);
-    }
-    std::string depth_rel;
-    if (o.monst3r_write_true_depth) {
-      std::snprintf(name, sizeof(name), "depth_%04d.npy", i);
-      WriteNpy((gt_dir / name).string(),
-               NpyArray::Float32({H, W}, depth_m.data()));
-      depth_rel = "monst3r_gt/" + c.clip_id + "/" + name;
-    }
-    nlohmann::ordered_json f;
-    f["index"] = i;
-    f["cam_front_index"] = j;
-    f["timestamp"] = ts[j];
-    f["sample_data_token"] = c.frame_tokens[i];
-    f["filename"] = c.frame_files[i];
-    const Eigen::Vector4d qw =
-        QuaternionToWxyz(world_from_cam.rotation.normalized());
-    f["world_from_cam"] = {
-        {"rotation_wxyz", {qw[0], qw[1], qw[2], qw[3]}},
-        {"translation_m",
-         {world_from_cam.translation.x(), world_from_cam.translation.y(),
-          world_from_cam.translation.z()}}};
-    const Eigen::Vector4d qg =
-        QuaternionToWxyz(global_from_cam.rotation.normalized());
-    f["global_from_cam"] = {
-        {"rotation_wxyz", {qg[0], qg[1], qg[2], qg[3]}},
-        {"translation_m",
-         {global_from_cam.translation.x(), global_from_cam.translation.y(),
-          global_from_cam.translation.z()}}};
-    f["true_depth"] = depth_rel;
-    gt_frames.push_back(f);
   }
-  WriteText((dir / "pred_traj.txt").string(), traj);
-  WriteText((dir / "pred_intrinsics.txt").string(), intr);
+  return pred;
+}
 
+// Appends frame i's lines of pred_traj.txt and pred_intrinsics.txt.
+void AppendMonst3rPredLines(int i,
+                            const Rigid3d& pred,
+                            double units_per_metre,
+                            const PinholeCamera& cam,
+                            std::string* traj,
+                            std::string* intr) {
+  *traj += PyFloat(static_cast<double>(i));
+  const Eigen::Vector3d tp = pred.translation * units_per_metre;
+  for (int a = 0; a < 3; ++a) *traj += " " + PyFloat(tp[a]);
+  const Eigen::Quaterniond q = pred.rotation.normalized();
+  *traj += " " + PyFloat(q.w()) + " " + PyFloat(q.x()) + " " + PyFloat(q.y()) +
+           " " + PyFloat(q.z()) + "\n";
+  *intr += Fmt6(cam.fx) + " " + Fmt6(0.0) + " " + Fmt6(cam.cx) + " " +
+           Fmt6(0.0) + " " + Fmt6(cam.fy) + " " + Fmt6(cam.cy) + " " +
+           Fmt6(0.0) + " " + Fmt6(0.0) + " " + Fmt6(1.0) + "\n";
+}
+
+// Per-frame images of a clip at the MonST3R resolution (reused across frames).
+struct Monst3rFrameMaps {
+  Monst3rFrameMaps(int width, int height)
+      : depth_m(static_cast<size_t>(width) * height),
+        conf(width * height),
+        init_conf(width * height),
+        mask(height, width, CV_8UC1) {}
+  std::vector<float> depth_m, conf, init_conf;
+  std::vector<float> depth_units;
+  cv::Mat mask, enlarged;
+};
+
+// Depth, confidence, masks at the MonST3R resolution of frame i (at time t)
+// from its rendered view; returns the number of outlier pixels.
+int64_t ComputeMonst3rFrameMaps(const MonstClipContext& c,
+                                const Monst3rClipSetup& setup,
+                                int i,
+                                double t,
+                                const RenderedView& view,
+                                Monst3rFrameMaps* maps) {
+  const SyntheticDatasetOptions& o = *c.o;
+  const int W = setup.cam.width, H = setup.cam.height;
+  const uint64_t clip_key = setup.clip_key;
+  const double units_per_metre = setup.units_per_metre;
+  std::vector<float>& depth_m = maps->depth_m;
+  std::vector<float>& conf = maps->conf;
+  std::vector<float>& init_conf = maps->init_conf;
+  cv::Mat& mask = maps->mask;
+  int64_t num_outliers = 0;
+  std::vector<bool> moving(c.world->NumVehicles() + 1, false);
+  for (int v = 0; v < c.world->NumVehicles(); ++v)
+    moving[v + 1] = c.world->Vehicle(v, t).moving;
+  std::vector<float> depth_units(static_cast<size_t>(W) * H);
+  for (int y = 0; y < H; ++y) {
+    const float* dr = view.depth.ptr<float>(y);
+    const uint16_t* ir = view.instance.ptr<uint16_t>(y);
+    uint8_t* mr = mask.ptr<uint8_t>(y);
+    for (int x = 0; x < W; ++x) {
+      const size_t p = static_cast<size_t>(y) * W + x;
+      const uint64_t key =
+          clip_key ^ Mix64((static_cast<uint64_t>(i) << 40) ^ p);
+      const uint16_t inst = ir[x];
+      const bool sky = inst == kSkyInstance;
+      const bool dyn = !sky && inst != kStaticInstance && moving[inst];
+      mr[x] = dyn ? 255 : 0;
+      depth_m[p] = dr[x];
+      double d = sky ? 500.0 : dr[x];
+      double raw = sky ? 1.02 : 1.0 + 30.0 * std::exp(-d / 40.0);
+      if (dyn) raw = 1.0 + 0.5 * (raw - 1.0);
+      if (o.monst3r_depth_noise > 0) {
+        d *= std::max(0.05, 1.0 + o.monst3r_depth_noise * Normal(key));
+      }
+      bool outlier = false;
+      if (o.monst3r_outlier_fraction > 0 &&
+          U01(key ^ 0x0F0F0F0F0F0Full) < o.monst3r_outlier_fraction) {
+        outlier = true;
+        ++num_outliers;
+        d *= 0.5 + 1.5 * U01(key ^ 0x1234567ull);
+        raw = 1.0 + 0.3 * U01(key ^ 0x7654321ull) + 0.01;
+      }
+      depth_units[p] = static_cast<float>(d * units_per_metre);
+      init_conf[p] = static_cast<float>(std::log(raw));
+      conf[p] = outlier ? -std::numeric_limits<float>::infinity()
+                        : static_cast<float>(std::log(1.0 + 0.8 * (raw - 1.0)));
+    }
+  }
+  maps->depth_units = std::move(depth_units);
+  return num_outliers;
+}
+
+// Writes frame i's MonST3R files (depth, confidences, masks, RGB) and, if
+// asked, its true depth; returns the true depth's path relative to the root
+// ("" when not written).
+std::string WriteMonst3rFrameFiles(const MonstClipContext& c,
+                                   const Monst3rClipSetup& setup,
+                                   int i,
+                                   Monst3rFrameMaps* maps) {
+  const SyntheticDatasetOptions& o = *c.o;
+  const fs::path& dir = setup.dir;
+  const fs::path& gt_dir = setup.gt_dir;
+  const ImageResizeSpec& spec = setup.spec;
+  const int W = setup.cam.width, H = setup.cam.height;
+  char name[64];
+  std::snprintf(name, sizeof(name), "frame_%04d.npy", i);
+  WriteNpy((dir / name).string(),
+           NpyArray::Float32({H, W}, maps->depth_units.data()));
+  WriteNpy((dir / ("conf_" + std::to_string(i) + ".npy")).string(),
+           NpyArray::Float32({H, W}, maps->conf.data()));
+  WriteNpy((dir / ("init_conf_" + std::to_string(i) + ".npy")).string(),
+           NpyArray::Float32({H, W}, maps->init_conf.data()));
+  WriteImageRgb((dir / ("dynamic_mask_" + std::to_string(i) + ".png")).string(),
+                maps->mask);
+  cv::dilate(maps->mask, maps->enlarged, setup.kernel);
+  WriteImageRgb(
+      (dir / ("enlarged_dynamic_mask_" + std::to_string(i) + ".png")).string(),
+      maps->enlarged);
+  // RGB: the camera JPEG as MonST3R loads it (resize, centre crop).
+  {
+    const cv::Mat rgb = ReadImageRgb((c.root / c.frame_files[i]).string());
+    cv::Mat resized;
+    const bool down = spec.resized_width < o.image_width;
+    cv::resize(rgb, resized, cv::Size(spec.resized_width, spec.resized_height),
+               0, 0, down ? cv::INTER_AREA : cv::INTER_CUBIC);
+    const cv::Mat cropped = resized(cv::Rect(spec.crop_left, spec.crop_top,
+                                             spec.width, spec.height))
+                                .clone();
+    std::snprintf(name, sizeof(name), "frame_%04d.png", i);
+    WriteImageRgb((dir / name).string(), cropped);
+  }
+  std::string depth_rel;
+  if (o.monst3r_write_true_depth) {
+    std::snprintf(name, sizeof(name), "depth_%04d.npy", i);
+    WriteNpy((gt_dir / name).string(),
+             NpyArray::Float32({H, W}, maps->depth_m.data()));
+    depth_rel = "monst3r_gt/" + c.clip_id + "/" + name;
+  }
+  return depth_rel;
+}
+
+// Frame i's entry of the ground-truth sidecar's "frames".
+nlohmann::ordered_json Monst3rFrameTruth(const MonstClipContext& c,
+                                         int i,
+                                         int64_t timestamp,
+                                         const Rigid3d& world_from_cam,
+                                         const Rigid3d& global_from_cam,
+                                         const std::string& depth_rel) {
+  const int j = c.start + i;
+  nlohmann::ordered_json f;
+  f["index"] = i;
+  f["cam_front_index"] = j;
+  f["timestamp"] = timestamp;
+  f["sample_data_token"] = c.frame_tokens[i];
+  f["filename"] = c.frame_files[i];
+  const Eigen::Vector4d qw =
+      QuaternionToWxyz(world_from_cam.rotation.normalized());
+  f["world_from_cam"] = {
+      {"rotation_wxyz", {qw[0], qw[1], qw[2], qw[3]}},
+      {"translation_m",
+       {world_from_cam.translation.x(), world_from_cam.translation.y(),
+        world_from_cam.translation.z()}}};
+  const Eigen::Vector4d qg =
+      QuaternionToWxyz(global_from_cam.rotation.normalized());
+  f["global_from_cam"] = {
+      {"rotation_wxyz", {qg[0], qg[1], qg[2], qg[3]}},
+      {"translation_m",
+       {global_from_cam.translation.x(), global_from_cam.translation.y(),
+        global_from_cam.translation.z()}}};
+  f["true_depth"] = depth_rel;
+  return f;
+}
+
+// Writes the clip's ground-truth sidecar monst3r_gt/<clip_id>.json.
+void WriteMonst3rClipTruth(const MonstClipContext& c,
+                           const Monst3rClipSetup& setup,
+                           const nlohmann::ordered_json& gt_frames,
+                           int64_t num_outliers) {
+  const SyntheticDatasetOptions& o = *c.o;
+  const ImageResizeSpec& spec = setup.spec;
+  const PinholeCamera& cam = setup.cam;
+  const int W = setup.cam.width, H = setup.cam.height;
+  const double units_per_metre = setup.units_per_metre;
+  const Rigid3d& global_from_cam0 = setup.global_from_cam0;
   nlohmann::ordered_json gt;
   gt["clip_id"] = c.clip_id;
   gt["scene_name"] = c.scene_name;
@@ -926,6 +1001,41 @@ void WriteMonst3rClip(const MonstClipContext& c) {
             gt.dump(1) + "\n");
 }
 
+void WriteMonst3rClip(const MonstClipContext& c) {
+  const SyntheticDatasetOptions& o = *c.o;
+  const Monst3rClipSetup setup = MakeMonst3rClipSetup(c);
+  MakeDirs(setup.dir);
+  if (o.monst3r_write_true_depth) MakeDirs(setup.gt_dir);
+  const auto& ts = c.tl->channel_us.at("CAM_FRONT");
+  std::string traj, intr;
+  nlohmann::ordered_json gt_frames = nlohmann::ordered_json::array();
+  Monst3rFrameMaps maps(setup.cam.width, setup.cam.height);
+  int64_t num_outliers = 0;
+  for (int i = 0; i < kSyntheticClipLength; ++i) {
+    const int j = c.start + i;
+    const double t = c.tl->Seconds(ts[j]);
+    const Rigid3d global_from_cam =
+        c.world->GlobalFromEgo(t) * setup.ego_from_cam;
+    const Rigid3d world_from_cam =
+        setup.cam0_from_global * global_from_cam;  // metres
+    const Rigid3d pred =
+        Monst3rPredictedPose(o, setup.clip_key, i, world_from_cam);
+    AppendMonst3rPredLines(i, pred, setup.units_per_metre, setup.cam, &traj,
+                           &intr);
+
+    // Depth, confidence, masks at the MonST3R resolution.
+    const RenderedView view =
+        c.world->RenderCamera(setup.cam, global_from_cam, t);
+    num_outliers += ComputeMonst3rFrameMaps(c, setup, i, t, view, &maps);
+    const std::string depth_rel = WriteMonst3rFrameFiles(c, setup, i, &maps);
+    gt_frames.push_back(Monst3rFrameTruth(c, i, ts[j], world_from_cam,
+                                          global_from_cam, depth_rel));
+  }
+  WriteText((setup.dir / "pred_traj.txt").string(), traj);
+  WriteText((setup.dir / "pred_intrinsics.txt").string(), intr);
+  WriteMonst3rClipTruth(c, setup, gt_frames, num_outliers);
+}
+
 void WriteMapMask(const fs::path& path, int location) {
   cv::Mat mask(128, 128, CV_8UC1, cv::Scalar(0));
   // A schematic drivable area: a cross (the synthetic worlds' street and cross
@@ -936,6 +1046,465 @@ void WriteMapMask(const fs::path& path, int location) {
   WriteImageRgb(path.string(), mask);
 }
 
+// Writes one dataset for WriteSyntheticDataset (options already validated):
+// the static tables, then scene by scene its log, scene and sample records,
+// sensor data, annotations and MonST3R clips, then the maps, the manifest.
+class DatasetWriter {
+ public:
+  DatasetWriter(const SyntheticDatasetOptions& o, const std::string& out_dir)
+      : o_(o),
+        root_(out_dir),
+        channels_(WrittenChannels(o)),
+        tok_{o.seed},
+        quality_{cv::IMWRITE_JPEG_QUALITY, o.jpeg_quality} {
+    summary_.root = out_dir;
+    summary_.version = o.version;
+    summary_.num_scenes = o.num_scenes;
+    lidar_opts_.azimuth_steps = o.lidar_azimuth_steps;
+  }
+
+  // Writes everything; the summary's `seconds` is left to the caller.
+  SyntheticDatasetSummary Write();
+
+ private:
+  // One scene being written.
+  struct Scene {
+    int index = 0;
+    const SyntheticWorld* world = nullptr;
+    const SyntheticTimeline* tl = nullptr;
+    std::string name, log;
+    // Keyframe lidar instance counts (sample x vehicle) feed num_lidar_pts.
+    std::vector<std::vector<int>> lidar_counts;
+    // CAM_FRONT sample_data filenames and tokens (for the MonST3R clips).
+    std::vector<std::string> cam_front_files, cam_front_tokens;
+  };
+
+  void MakeDirectories() const;
+  void OpenTables();
+  void WriteScene(int s);
+  void WriteSceneRecords(const Scene& scene);
+  void WriteChannel(const std::string& ch, Scene* scene);
+  void WriteCalibratedSensor(const std::string& ch,
+                             int cid,
+                             const std::string& calib,
+                             const Rigid3d& ego_from_sensor);
+  void WriteSensorFile(const std::string& ch,
+                       const PinholeCamera& cam,
+                       const Rigid3d& global_from_sensor,
+                       double t,
+                       const std::string& path,
+                       bool is_key_frame,
+                       int sample,
+                       Scene* scene);
+  void WriteAnnotations(const Scene& scene);
+  nlohmann::ordered_json WriteMonst3rClips(const Scene& scene);
+  void WriteMaps();
+  void WriteManifest() const;
+  void Progress(const std::string& line) const {
+    if (o_.progress) o_.progress(line);
+  }
+
+  const SyntheticDatasetOptions& o_;
+  const fs::path root_;
+  const std::vector<std::string> channels_;
+  const Tokens tok_;
+  const std::vector<int> quality_;
+  LidarOptions lidar_opts_;
+  Writers w_;
+  SyntheticDatasetSummary summary_;
+  nlohmann::ordered_json manifest_scenes_ = nlohmann::ordered_json::array();
+  std::vector<uchar> jpeg_;  // encoder output, reused
+};
+
+SyntheticDatasetSummary DatasetWriter::Write() {
+  MakeDirectories();
+  OpenTables();
+  WriteStaticTables(o_, tok_, w_, channels_);
+  for (int s = 0; s < o_.num_scenes; ++s) WriteScene(s);
+  WriteMaps();
+  for (auto& [name, writer] : w_.t) writer->Close();
+  WriteManifest();
+  return summary_;
+}
+
+void DatasetWriter::MakeDirectories() const {
+  MakeDirs(root_ / o_.version);
+  MakeDirs(root_ / "maps");
+  if (!o_.tables_only) {
+    for (const auto& ch : channels_) {
+      MakeDirs(root_ / "samples" / ch);
+      MakeDirs(root_ / "sweeps" / ch);
+    }
+  }
+  if (o_.write_monst3r) {
+    MakeDirs(root_ / "monst3r");
+    MakeDirs(root_ / "monst3r_gt");
+  }
+}
+
+void DatasetWriter::OpenTables() {
+  for (const char* name :
+       {"category", "attribute", "visibility", "instance", "sensor",
+        "calibrated_sensor", "ego_pose", "log", "scene", "sample",
+        "sample_data", "sample_annotation", "map"}) {
+    w_.t[name] = std::make_unique<JsonTableWriter>(
+        (root_ / o_.version / (std::string(name) + ".json")).string());
+  }
+}
+
+void DatasetWriter::WriteScene(int s) {
+  const SyntheticWorld world(SyntheticWorldOptionsFor(o_, s));
+  const SyntheticTimeline tl = MakeSyntheticTimeline(o_, s);
+  Scene scene;
+  scene.index = s;
+  scene.world = &world;
+  scene.tl = &tl;
+  scene.name = SyntheticSceneName(s);
+  scene.log = LogName(o_.seed, s);
+  const std::string& scene_name = scene.name;
+  summary_.scene_maneuvers.push_back(ToString(world.maneuver()));
+  WriteSceneRecords(scene);
+
+  // Sensor data. Keyframe lidar instance counts feed num_lidar_pts.
+  scene.lidar_counts.assign(tl.num_samples,
+                            std::vector<int>(world.NumVehicles(), 0));
+  for (const std::string& ch : channels_) WriteChannel(ch, &scene);
+
+  // Annotations: every vehicle within 80 m of the ego at a keyframe.
+  WriteAnnotations(scene);
+
+  // MonST3R clips.
+  const nlohmann::ordered_json clips = WriteMonst3rClips(scene);
+  manifest_scenes_.push_back({{"name", scene_name},
+                              {"token", tok_.Make(kTokScene, s)},
+                              {"log", scene.log},
+                              {"maneuver", ToString(world.maneuver())},
+                              {"intersection_x_street", world.intersection_x()},
+                              {"monst3r_clips", clips}});
+  if (!o_.tables_only || (s + 1) % 50 == 0 || s + 1 == o_.num_scenes) {
+    Progress("scene " + std::to_string(s + 1) + "/" +
+             std::to_string(o_.num_scenes) + " (" + scene_name + ", " +
+             ToString(world.maneuver()) + ") done");
+  }
+}
+
+// The log, scene and sample records of a scene.
+void DatasetWriter::WriteSceneRecords(const Scene& scene) {
+  const int s = scene.index;
+  const SyntheticWorld& world = *scene.world;
+  const SyntheticTimeline& tl = *scene.tl;
+  const int location = s % 2;
+  const int N = tl.num_samples;
+  auto& t = w_["log"];
+  t.Begin();
+  t.Str("token", tok_.Make(kTokLog, s));
+  t.Str("logfile", scene.log);
+  t.Str("vehicle", "n900");
+  t.Str("date_captured", "2025-06-01");
+  t.Str("location", kLocations[location]);
+  t.End();
+  auto& sc = w_["scene"];
+  sc.Begin();
+  sc.Str("token", tok_.Make(kTokScene, s));
+  sc.Str("log_token", tok_.Make(kTokLog, s));
+  sc.Int("nbr_samples", N);
+  sc.Str("first_sample_token", tok_.Make(kTokSample, s, 0));
+  sc.Str("last_sample_token", tok_.Make(kTokSample, s, N - 1));
+  sc.Str("name", scene.name);
+  sc.Str("description", "synthetic street, ego " + ToString(world.maneuver()) +
+                            ", seed " + std::to_string(o_.seed));
+  sc.End();
+  for (int n = 0; n < N; ++n) {
+    auto& sm = w_["sample"];
+    sm.Begin();
+    sm.Str("token", tok_.Make(kTokSample, s, n));
+    sm.Int("timestamp", tl.sample_us[n]);
+    sm.Str("prev", n > 0 ? tok_.Make(kTokSample, s, n - 1) : "");
+    sm.Str("next", n + 1 < N ? tok_.Make(kTokSample, s, n + 1) : "");
+    sm.Str("scene_token", tok_.Make(kTokScene, s));
+    sm.End();
+  }
+  summary_.num_samples += N;
+}
+
+// One channel of a scene: its calibrated_sensor record, then per frame the
+// ego_pose and sample_data records and (unless tables-only) the file.
+void DatasetWriter::WriteChannel(const std::string& ch, Scene* scene) {
+  const int s = scene->index;
+  const SyntheticWorld& world = *scene->world;
+  const SyntheticTimeline& tl = *scene->tl;
+  const int cid = ChannelId(ch);
+  const Rigid3d ego_from_sensor = SyntheticEgoFromSensor(ch);
+  const std::string calib = tok_.Make(kTokCalib, s, cid);
+  WriteCalibratedSensor(ch, cid, calib, ego_from_sensor);
+  const auto& ts = tl.channel_us.at(ch);
+  const auto& key = tl.channel_key.at(ch);
+  const auto& smp = tl.channel_sample.at(ch);
+  const PinholeCamera cam =
+      IsCameraChannel(ch)
+          ? SyntheticCameraIntrinsics(ch, o_.image_width, o_.image_height)
+          : PinholeCamera();
+  const int M = static_cast<int>(ts.size());
+  for (int m = 0; m < M; ++m) {
+    const double t = tl.Seconds(ts[m]);
+    const Rigid3d global_from_ego = world.GlobalFromEgo(t);
+    const std::string sd_token = tok_.Make(kTokSampleData, s, cid, m);
+    const std::string ep_token = tok_.Make(kTokEgoPose, s, cid, m);
+    const std::string filename = SweepFilename(scene->log, ch, ts[m], key[m]);
+    {
+      auto& e = w_["ego_pose"];
+      e.Begin();
+      e.Str("token", ep_token);
+      e.Int("timestamp", ts[m]);
+      double q[4];
+      Quat(global_from_ego.rotation, q);
+      e.Nums("rotation", q, 4);
+      e.Nums("translation", global_from_ego.translation.data(), 3);
+      e.End();
+      auto& d = w_["sample_data"];
+      d.Begin();
+      d.Str("token", sd_token);
+      d.Str("sample_token", tok_.Make(kTokSample, s, smp[m]));
+      d.Str("ego_pose_token", ep_token);
+      d.Str("calibrated_sensor_token", calib);
+      d.Int("timestamp", ts[m]);
+      d.Str("fileformat", IsCameraChannel(ch) ? "jpg" : "pcd");
+      d.Bool("is_key_frame", key[m]);
+      d.Int("height", IsCameraChannel(ch) ? o_.image_height : 0);
+      d.Int("width", IsCameraChannel(ch) ? o_.image_width : 0);
+      d.Str("filename", filename);
+      d.Str("prev", m > 0 ? tok_.Make(kTokSampleData, s, cid, m - 1) : "");
+      d.Str("next", m + 1 < M ? tok_.Make(kTokSampleData, s, cid, m + 1) : "");
+      d.End();
+    }
+    if (ch == "CAM_FRONT") {
+      scene->cam_front_files.push_back(filename);
+      scene->cam_front_tokens.push_back(sd_token);
+    }
+    if (o_.tables_only) continue;
+    const Rigid3d global_from_sensor = global_from_ego * ego_from_sensor;
+    const std::string path = (root_ / filename).string();
+    WriteSensorFile(ch, cam, global_from_sensor, t, path, key[m], smp[m],
+                    scene);
+  }
+  summary_.num_sample_data += M;
+  summary_.num_ego_poses += M;
+  if (!o_.tables_only) {
+    Progress(scene->name + " " + ch + ": " + std::to_string(M) + " files");
+  }
+}
+
+void DatasetWriter::WriteCalibratedSensor(const std::string& ch,
+                                          int cid,
+                                          const std::string& calib,
+                                          const Rigid3d& ego_from_sensor) {
+  auto& t = w_["calibrated_sensor"];
+  t.Begin();
+  t.Str("token", calib);
+  t.Str("sensor_token", tok_.Make(kTokSensor, cid));
+  double q[4];
+  Quat(ego_from_sensor.rotation, q);
+  t.Nums("translation", ego_from_sensor.translation.data(), 3);
+  t.Nums("rotation", q, 4);
+  if (IsCameraChannel(ch)) {
+    const PinholeCamera cam =
+        SyntheticCameraIntrinsics(ch, o_.image_width, o_.image_height);
+    std::ostringstream k;
+    k.precision(17);
+    auto num = [](double v) {
+      char b[64];
+      return std::string(b, std::to_chars(b, b + sizeof(b), v).ptr);
+    };
+    t.Raw("camera_intrinsic", "[[" + num(cam.fx) + ", 0.0, " + num(cam.cx) +
+                                  "], [0.0, " + num(cam.fy) + ", " +
+                                  num(cam.cy) + "], [0.0, 0.0, 1.0]]");
+  } else {
+    t.Raw("camera_intrinsic", "[]");
+  }
+  t.End();
+}
+
+// The file of one sample_data: a camera JPEG or a LIDAR_TOP .pcd.bin (whose
+// keyframe instance counts go to scene->lidar_counts[sample]).
+void DatasetWriter::WriteSensorFile(const std::string& ch,
+                                    const PinholeCamera& cam,
+                                    const Rigid3d& global_from_sensor,
+                                    double t,
+                                    const std::string& path,
+                                    bool is_key_frame,
+                                    int sample,
+                                    Scene* scene) {
+  const SyntheticWorld& world = *scene->world;
+  if (IsCameraChannel(ch)) {
+    const RenderedView view = world.RenderCamera(cam, global_from_sensor, t);
+    cv::Mat bgr;
+    cv::cvtColor(view.rgb, bgr, cv::COLOR_RGB2BGR);
+    if (!cv::imencode(".jpg", bgr, jpeg_, quality_))
+      ThrowInputError(path, "JPEG encoding failed");
+    WriteBytes(path, jpeg_.data(), jpeg_.size());
+    ++summary_.num_images;
+  } else if (ch == "LIDAR_TOP") {
+    const LidarSweep sweep =
+        world.CastLidar(global_from_sensor, t, lidar_opts_);
+    std::vector<float> data(sweep.points.size() * 5);
+    for (size_t k = 0; k < sweep.points.size(); ++k) {
+      data[5 * k + 0] = sweep.points[k].x();
+      data[5 * k + 1] = sweep.points[k].y();
+      data[5 * k + 2] = sweep.points[k].z();
+      data[5 * k + 3] = sweep.intensity[k];
+      data[5 * k + 4] = sweep.ring[k];
+    }
+    WriteBytes(path, data.data(), data.size() * sizeof(float));
+    ++summary_.num_lidar_sweeps;
+    summary_.num_lidar_points += static_cast<int64_t>(sweep.points.size());
+    if (is_key_frame) {
+      for (uint16_t inst : sweep.instance) {
+        if (inst != kStaticInstance && inst != kSkyInstance)
+          ++scene->lidar_counts[sample][inst - 1];
+      }
+    }
+  }
+}
+
+// Annotations: every vehicle within 80 m of the ego at a keyframe (an instance
+// record per annotated vehicle and its sample_annotation records).
+void DatasetWriter::WriteAnnotations(const Scene& scene) {
+  const int s = scene.index;
+  const SyntheticWorld& world = *scene.world;
+  const SyntheticTimeline& tl = *scene.tl;
+  const int N = tl.num_samples;
+  for (int v = 0; v < world.NumVehicles(); ++v) {
+    std::vector<int> annotated;
+    for (int n = 0; n < N; ++n) {
+      const double t = tl.Seconds(tl.sample_us[n]);
+      const Eigen::Vector3d d =
+          world.Vehicle(v, t).center - world.GlobalFromEgo(t).translation;
+      if (d.head<2>().norm() <= 80.0) annotated.push_back(n);
+    }
+    if (annotated.empty()) continue;
+    const std::string inst_token = tok_.Make(kTokInstance, s, v);
+    auto ann_token = [&](int n) { return tok_.Make(kTokAnnotation, s, v, n); };
+    const VehicleBox first = world.Vehicle(v, 0.0);
+    {
+      auto& t = w_["instance"];
+      t.Begin();
+      t.Str("token", inst_token);
+      t.Str("category_token",
+            tok_.Make(kTokCategory, IndexOf(Categories(), first.category)));
+      t.Int("nbr_annotations", static_cast<int64_t>(annotated.size()));
+      t.Str("first_annotation_token", ann_token(annotated.front()));
+      t.Str("last_annotation_token", ann_token(annotated.back()));
+      t.End();
+      ++summary_.num_instances;
+    }
+    for (size_t a = 0; a < annotated.size(); ++a) {
+      const int n = annotated[a];
+      const double t = tl.Seconds(tl.sample_us[n]);
+      const VehicleBox box = world.Vehicle(v, t);
+      int num_pts;
+      std::string vis;
+      if (o_.tables_only) {
+        // Analytic estimate (no ray casting in tables-only mode).
+        const double dist =
+            (box.center - world.GlobalFromEgo(t).translation).head<2>().norm();
+        num_pts = static_cast<int>(std::min(
+            3000.0,
+            2.0e4 * box.size_wlh[0] * box.size_wlh[2] / (dist * dist + 1.0)));
+        vis = dist < 30 ? "4" : (dist < 50 ? "3" : (dist < 65 ? "2" : "1"));
+      } else {
+        num_pts = scene.lidar_counts[n][v];
+        vis = VisibilityToken(VisibleFraction(world, o_, box, t));
+      }
+      auto& r = w_["sample_annotation"];
+      r.Begin();
+      r.Str("token", ann_token(n));
+      r.Str("sample_token", tok_.Make(kTokSample, s, n));
+      r.Str("instance_token", inst_token);
+      r.Str("visibility_token", vis);
+      r.Strs("attribute_tokens",
+             {tok_.Make(kTokAttribute, IndexOf(Attributes(), box.attribute))});
+      r.Nums("translation", box.center.data(), 3);
+      r.Nums("size", box.size_wlh.data(), 3);
+      double q[4];
+      Quat(box.rotation, q);
+      r.Nums("rotation", q, 4);
+      r.Str("prev", a > 0 ? ann_token(annotated[a - 1]) : "");
+      r.Str("next",
+            a + 1 < annotated.size() ? ann_token(annotated[a + 1]) : "");
+      r.Int("num_lidar_pts", num_pts);
+      r.Int("num_radar_pts", 0);
+      r.End();
+      ++summary_.num_annotations;
+    }
+  }
+}
+
+// Writes the scene's MonST3R clips (if asked); returns their ids.
+nlohmann::ordered_json DatasetWriter::WriteMonst3rClips(const Scene& scene) {
+  const std::string& scene_name = scene.name;
+  nlohmann::ordered_json clips = nlohmann::ordered_json::array();
+  if (!o_.write_monst3r) return clips;
+  for (int start : SyntheticMonst3rClipStarts(
+           o_, static_cast<int>(scene.cam_front_files.size()))) {
+    MonstClipContext c;
+    c.o = &o_;
+    c.world = scene.world;
+    c.tl = scene.tl;
+    c.root = root_;
+    c.scene_name = scene_name;
+    c.scene_index = scene.index;
+    c.start = start;
+    c.clip_id = MakeClipId(scene_name, start);
+    c.frame_files.assign(
+        scene.cam_front_files.begin() + start,
+        scene.cam_front_files.begin() + start + kSyntheticClipLength);
+    c.frame_tokens.assign(
+        scene.cam_front_tokens.begin() + start,
+        scene.cam_front_tokens.begin() + start + kSyntheticClipLength);
+    WriteMonst3rClip(c);
+    summary_.monst3r_clip_ids.push_back(c.clip_id);
+    clips.push_back(c.clip_id);
+    Progress(scene_name + " MonST3R clip " + c.clip_id);
+  }
+  return clips;
+}
+
+// Maps: one per location used, covering its logs.
+void DatasetWriter::WriteMaps() {
+  for (int loc = 0; loc < std::min(2, o_.num_scenes); ++loc) {
+    std::vector<std::string> logs;
+    for (int s = loc; s < o_.num_scenes; s += 2)
+      logs.push_back(tok_.Make(kTokLog, s));
+    const std::string map_token = tok_.Make(kTokMap, loc);
+    const std::string filename = "maps/" + map_token + ".png";
+    auto& t = w_["map"];
+    t.Begin();
+    t.Str("category", "semantic_prior");
+    t.Str("token", map_token);
+    t.Str("filename", filename);
+    t.Strs("log_tokens", logs);
+    t.End();
+    WriteMapMask(root_ / filename, loc);
+  }
+}
+
+void DatasetWriter::WriteManifest() const {
+  nlohmann::ordered_json manifest;
+  manifest["generator"] = "geodrive synth";
+  manifest["version"] = o_.version;
+  manifest["seed"] = o_.seed;
+  manifest["num_scenes"] = o_.num_scenes;
+  manifest["image_size"] = {o_.image_width, o_.image_height};
+  manifest["cameras"] = o_.cameras;
+  manifest["scene_duration_s"] = o_.scene_duration_s;
+  manifest["tables_only"] = o_.tables_only;
+  manifest["monst3r"] = o_.write_monst3r;
+  manifest["monst3r_clip_stride"] = o_.monst3r_clip_stride;
+  manifest["scenes"] = manifest_scenes_;
+  WriteText((root_ / "synthetic_manifest.json").string(),
+            manifest.dump(1) + "\n");
+}
+
 }  // namespace
 
 SyntheticDatasetSummary WriteSyntheticDataset(const SyntheticDatasetOptions& o,
@@ -944,351 +1513,7 @@ SyntheticDatasetSummary WriteSyntheticDataset(const SyntheticDatasetOptions& o,
   GEODRIVE_CHECK_INPUT(err.empty(), "synth options: ", err);
   GEODRIVE_CHECK_INPUT(!out_dir.empty(), "synth: empty output directory");
   const auto t_begin = std::chrono::steady_clock::now();
-  const fs::path root(out_dir);
-  MakeDirs(root / o.version);
-  MakeDirs(root / "maps");
-  const std::vector<std::string> channels = WrittenChannels(o);
-  if (!o.tables_only) {
-    for (const auto& ch : channels) {
-      MakeDirs(root / "samples" / ch);
-      MakeDirs(root / "sweeps" / ch);
-    }
-  }
-  if (o.write_monst3r) {
-    MakeDirs(root / "monst3r");
-    MakeDirs(root / "monst3r_gt");
-  }
-  auto progress = [&](const std::string& line) {
-    if (o.progress) o.progress(line);
-  };
-
-  const Tokens tok{o.seed};
-  Writers w;
-  for (const char* name :
-       {"category", "attribute", "visibility", "instance", "sensor",
-        "calibrated_sensor", "ego_pose", "log", "scene", "sample",
-        "sample_data", "sample_annotation", "map"}) {
-    w.t[name] = std::make_unique<JsonTableWriter>(
-        (root / o.version / (std::string(name) + ".json")).string());
-  }
-  WriteStaticTables(o, tok, w, channels);
-
-  SyntheticDatasetSummary summary;
-  summary.root = out_dir;
-  summary.version = o.version;
-  summary.num_scenes = o.num_scenes;
-  const LidarOptions lidar_opts = [&] {
-    LidarOptions l;
-    l.azimuth_steps = o.lidar_azimuth_steps;
-    return l;
-  }();
-  nlohmann::ordered_json manifest_scenes = nlohmann::ordered_json::array();
-  std::vector<int> quality = {cv::IMWRITE_JPEG_QUALITY, o.jpeg_quality};
-  std::vector<uchar> jpeg;
-
-  for (int s = 0; s < o.num_scenes; ++s) {
-    const SyntheticWorld world(SyntheticWorldOptionsFor(o, s));
-    const SyntheticTimeline tl = MakeSyntheticTimeline(o, s);
-    const std::string scene_name = SyntheticSceneName(s);
-    const std::string log = LogName(o.seed, s);
-    const int location = s % 2;
-    const int N = tl.num_samples;
-    summary.scene_maneuvers.push_back(ToString(world.maneuver()));
-
-    {  // log, scene, samples
-      auto& t = w["log"];
-      t.Begin();
-      t.Str("token", tok.Make(kTokLog, s));
-      t.Str("logfile", log);
-      t.Str("vehicle", "n900");
-      t.Str("date_captured", "2025-06-01");
-      t.Str("location", kLocations[location]);
-      t.End();
-      auto& sc = w["scene"];
-      sc.Begin();
-      sc.Str("token", tok.Make(kTokScene, s));
-      sc.Str("log_token", tok.Make(kTokLog, s));
-      sc.Int("nbr_samples", N);
-      sc.Str("first_sample_token", tok.Make(kTokSample, s, 0));
-      sc.Str("last_sample_token", tok.Make(kTokSample, s, N - 1));
-      sc.Str("name", scene_name);
-      sc.Str("description", "synthetic street, ego " +
-                                ToString(world.maneuver()) + ", seed " +
-                                std::to_string(o.seed));
-      sc.End();
-      for (int n = 0; n < N; ++n) {
-        auto& sm = w["sample"];
-        sm.Begin();
-        sm.Str("token", tok.Make(kTokSample, s, n));
-        sm.Int("timestamp", tl.sample_us[n]);
-        sm.Str("prev", n > 0 ? tok.Make(kTokSample, s, n - 1) : "");
-        sm.Str("next", n + 1 < N ? tok.Make(kTokSample, s, n + 1) : "");
-        sm.Str("scene_token", tok.Make(kTokScene, s));
-        sm.End();
-      }
-      summary.num_samples += N;
-    }
-
-    // Sensor data. Keyframe lidar instance counts feed num_lidar_pts.
-    std::vector<std::vector<int>> lidar_counts(
-        N, std::vector<int>(world.NumVehicles(), 0));
-    std::vector<std::string> cam_front_files, cam_front_tokens;
-    for (const std::string& ch : channels) {
-      const int cid = ChannelId(ch);
-      const Rigid3d ego_from_sensor = SyntheticEgoFromSensor(ch);
-      const std::string calib = tok.Make(kTokCalib, s, cid);
-      {
-        auto& t = w["calibrated_sensor"];
-        t.Begin();
-        t.Str("token", calib);
-        t.Str("sensor_token", tok.Make(kTokSensor, cid));
-        double q[4];
-        Quat(ego_from_sensor.rotation, q);
-        t.Nums("translation", ego_from_sensor.translation.data(), 3);
-        t.Nums("rotation", q, 4);
-        if (IsCameraChannel(ch)) {
-          const PinholeCamera cam =
-              SyntheticCameraIntrinsics(ch, o.image_width, o.image_height);
-          std::ostringstream k;
-          k.precision(17);
-          auto num = [](double v) {
-            char b[64];
-            return std::string(b, std::to_chars(b, b + sizeof(b), v).ptr);
-          };
-          t.Raw("camera_intrinsic",
-                "[[" + num(cam.fx) + ", 0.0, " + num(cam.cx) + "], [0.0, " +
-                    num(cam.fy) + ", " + num(cam.cy) + "], [0.0, 0.0, 1.0]]");
-        } else {
-          t.Raw("camera_intrinsic", "[]");
-        }
-        t.End();
-      }
-      const auto& ts = tl.channel_us.at(ch);
-      const auto& key = tl.channel_key.at(ch);
-      const auto& smp = tl.channel_sample.at(ch);
-      const PinholeCamera cam =
-          IsCameraChannel(ch)
-              ? SyntheticCameraIntrinsics(ch, o.image_width, o.image_height)
-              : PinholeCamera();
-      const int M = static_cast<int>(ts.size());
-      for (int m = 0; m < M; ++m) {
-        const double t = tl.Seconds(ts[m]);
-        const Rigid3d global_from_ego = world.GlobalFromEgo(t);
-        const std::string sd_token = tok.Make(kTokSampleData, s, cid, m);
-        const std::string ep_token = tok.Make(kTokEgoPose, s, cid, m);
-        const std::string filename = SweepFilename(log, ch, ts[m], key[m]);
-        {
-          auto& e = w["ego_pose"];
-          e.Begin();
-          e.Str("token", ep_token);
-          e.Int("timestamp", ts[m]);
-          double q[4];
-          Quat(global_from_ego.rotation, q);
-          e.Nums("rotation", q, 4);
-          e.Nums("translation", global_from_ego.translation.data(), 3);
-          e.End();
-          auto& d = w["sample_data"];
-          d.Begin();
-          d.Str("token", sd_token);
-          d.Str("sample_token", tok.Make(kTokSample, s, smp[m]));
-          d.Str("ego_pose_token", ep_token);
-          d.Str("calibrated_sensor_token", calib);
-          d.Int("timestamp", ts[m]);
-          d.Str("fileformat", IsCameraChannel(ch) ? "jpg" : "pcd");
-          d.Bool("is_key_frame", key[m]);
-          d.Int("height", IsCameraChannel(ch) ? o.image_height : 0);
-          d.Int("width", IsCameraChannel(ch) ? o.image_width : 0);
-          d.Str("filename", filename);
-          d.Str("prev", m > 0 ? tok.Make(kTokSampleData, s, cid, m - 1) : "");
-          d.Str("next",
-                m + 1 < M ? tok.Make(kTokSampleData, s, cid, m + 1) : "");
-          d.End();
-        }
-        if (ch == "CAM_FRONT") {
-          cam_front_files.push_back(filename);
-          cam_front_tokens.push_back(sd_token);
-        }
-        if (o.tables_only) continue;
-        const Rigid3d global_from_sensor = global_from_ego * ego_from_sensor;
-        const std::string path = (root / filename).string();
-        if (IsCameraChannel(ch)) {
-          const RenderedView view =
-              world.RenderCamera(cam, global_from_sensor, t);
-          cv::Mat bgr;
-          cv::cvtColor(view.rgb, bgr, cv::COLOR_RGB2BGR);
-          if (!cv::imencode(".jpg", bgr, jpeg, quality))
-            ThrowInputError(path, "JPEG encoding failed");
-          WriteBytes(path, jpeg.data(), jpeg.size());
-          ++summary.num_images;
-        } else if (ch == "LIDAR_TOP") {
-          const LidarSweep sweep =
-              world.CastLidar(global_from_sensor, t, lidar_opts);
-          std::vector<float> data(sweep.points.size() * 5);
-          for (size_t k = 0; k < sweep.points.size(); ++k) {
-            data[5 * k + 0] = sweep.points[k].x();
-            data[5 * k + 1] = sweep.points[k].y();
-            data[5 * k + 2] = sweep.points[k].z();
-            data[5 * k + 3] = sweep.intensity[k];
-            data[5 * k + 4] = sweep.ring[k];
-          }
-          WriteBytes(path, data.data(), data.size() * sizeof(float));
-          ++summary.num_lidar_sweeps;
-          summary.num_lidar_points += static_cast<int64_t>(sweep.points.size());
-          if (key[m]) {
-            for (uint16_t inst : sweep.instance) {
-              if (inst != kStaticInstance && inst != kSkyInstance)
-                ++lidar_counts[smp[m]][inst - 1];
-            }
-          }
-        }
-      }
-      summary.num_sample_data += M;
-      summary.num_ego_poses += M;
-      if (!o.tables_only) {
-        progress(scene_name + " " + ch + ": " + std::to_string(M) + " files");
-      }
-    }
-
-    // Annotations: every vehicle within 80 m of the ego at a keyframe.
-    for (int v = 0; v < world.NumVehicles(); ++v) {
-      std::vector<int> annotated;
-      for (int n = 0; n < N; ++n) {
-        const double t = tl.Seconds(tl.sample_us[n]);
-        const Eigen::Vector3d d =
-            world.Vehicle(v, t).center - world.GlobalFromEgo(t).translation;
-        if (d.head<2>().norm() <= 80.0) annotated.push_back(n);
-      }
-      if (annotated.empty()) continue;
-      const std::string inst_token = tok.Make(kTokInstance, s, v);
-      auto ann_token = [&](int n) { return tok.Make(kTokAnnotation, s, v, n); };
-      const VehicleBox first = world.Vehicle(v, 0.0);
-      {
-        auto& t = w["instance"];
-        t.Begin();
-        t.Str("token", inst_token);
-        t.Str("category_token",
-              tok.Make(kTokCategory, IndexOf(Categories(), first.category)));
-        t.Int("nbr_annotations", static_cast<int64_t>(annotated.size()));
-        t.Str("first_annotation_token", ann_token(annotated.front()));
-        t.Str("last_annotation_token", ann_token(annotated.back()));
-        t.End();
-        ++summary.num_instances;
-      }
-      for (size_t a = 0; a < annotated.size(); ++a) {
-        const int n = annotated[a];
-        const double t = tl.Seconds(tl.sample_us[n]);
-        const VehicleBox box = world.Vehicle(v, t);
-        int num_pts;
-        std::string vis;
-        if (o.tables_only) {
-          // Analytic estimate (no ray casting in tables-only mode).
-          const double dist = (box.center - world.GlobalFromEgo(t).translation)
-                                  .head<2>()
-                                  .norm();
-          num_pts = static_cast<int>(std::min(
-              3000.0,
-              2.0e4 * box.size_wlh[0] * box.size_wlh[2] / (dist * dist + 1.0)));
-          vis = dist < 30 ? "4" : (dist < 50 ? "3" : (dist < 65 ? "2" : "1"));
-        } else {
-          num_pts = lidar_counts[n][v];
-          vis = VisibilityToken(VisibleFraction(world, o, box, t));
-        }
-        auto& r = w["sample_annotation"];
-        r.Begin();
-        r.Str("token", ann_token(n));
-        r.Str("sample_token", tok.Make(kTokSample, s, n));
-        r.Str("instance_token", inst_token);
-        r.Str("visibility_token", vis);
-        r.Strs("attribute_tokens",
-               {tok.Make(kTokAttribute, IndexOf(Attributes(), box.attribute))});
-        r.Nums("translation", box.center.data(), 3);
-        r.Nums("size", box.size_wlh.data(), 3);
-        double q[4];
-        Quat(box.rotation, q);
-        r.Nums("rotation", q, 4);
-        r.Str("prev", a > 0 ? ann_token(annotated[a - 1]) : "");
-        r.Str("next",
-              a + 1 < annotated.size() ? ann_token(annotated[a + 1]) : "");
-        r.Int("num_lidar_pts", num_pts);
-        r.Int("num_radar_pts", 0);
-        r.End();
-        ++summary.num_annotations;
-      }
-    }
-
-    // MonST3R clips.
-    nlohmann::ordered_json clips = nlohmann::ordered_json::array();
-    if (o.write_monst3r) {
-      for (int start : SyntheticMonst3rClipStarts(
-               o, static_cast<int>(cam_front_files.size()))) {
-        MonstClipContext c;
-        c.o = &o;
-        c.world = &world;
-        c.tl = &tl;
-        c.root = root;
-        c.scene_name = scene_name;
-        c.scene_index = s;
-        c.start = start;
-        c.clip_id = MakeClipId(scene_name, start);
-        c.frame_files.assign(
-            cam_front_files.begin() + start,
-            cam_front_files.begin() + start + kSyntheticClipLength);
-        c.frame_tokens.assign(
-            cam_front_tokens.begin() + start,
-            cam_front_tokens.begin() + start + kSyntheticClipLength);
-        WriteMonst3rClip(c);
-        summary.monst3r_clip_ids.push_back(c.clip_id);
-        clips.push_back(c.clip_id);
-        progress(scene_name + " MonST3R clip " + c.clip_id);
-      }
-    }
-    manifest_scenes.push_back(
-        {{"name", scene_name},
-         {"token", tok.Make(kTokScene, s)},
-         {"log", log},
-         {"maneuver", ToString(world.maneuver())},
-         {"intersection_x_street", world.intersection_x()},
-         {"monst3r_clips", clips}});
-    if (!o.tables_only || (s + 1) % 50 == 0 || s + 1 == o.num_scenes) {
-      progress("scene " + std::to_string(s + 1) + "/" +
-               std::to_string(o.num_scenes) + " (" + scene_name + ", " +
-               ToString(world.maneuver()) + ") done");
-    }
-  }
-
-  // Maps: one per location used, covering its logs.
-  for (int loc = 0; loc < std::min(2, o.num_scenes); ++loc) {
-    std::vector<std::string> logs;
-    for (int s = loc; s < o.num_scenes; s += 2)
-      logs.push_back(tok.Make(kTokLog, s));
-    const std::string map_token = tok.Make(kTokMap, loc);
-    const std::string filename = "maps/" + map_token + ".png";
-    auto& t = w["map"];
-    t.Begin();
-    t.Str("category", "semantic_prior");
-    t.Str("token", map_token);
-    t.Str("filename", filename);
-    t.Strs("log_tokens", logs);
-    t.End();
-    WriteMapMask(root / filename, loc);
-  }
-  for (auto& [name, writer] : w.t) writer->Close();
-
-  nlohmann::ordered_json manifest;
-  manifest["generator"] = "geodrive synth";
-  manifest["version"] = o.version;
-  manifest["seed"] = o.seed;
-  manifest["num_scenes"] = o.num_scenes;
-  manifest["image_size"] = {o.image_width, o.image_height};
-  manifest["cameras"] = o.cameras;
-  manifest["scene_duration_s"] = o.scene_duration_s;
-  manifest["tables_only"] = o.tables_only;
-  manifest["monst3r"] = o.write_monst3r;
-  manifest["monst3r_clip_stride"] = o.monst3r_clip_stride;
-  manifest["scenes"] = manifest_scenes;
-  WriteText((root / "synthetic_manifest.json").string(),
-            manifest.dump(1) + "\n");
-
+  SyntheticDatasetSummary summary = DatasetWriter(o, out_dir).Write();
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_begin)
           .count();

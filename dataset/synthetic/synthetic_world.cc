@@ -1,4 +1,4 @@
-#include "dataset/synthetic_world.h"
+#include "dataset/synthetic/synthetic_world.h"
 
 #include <algorithm>
 #include <cmath>
@@ -382,6 +382,14 @@ struct SyntheticWorld::Impl {
 
   void Generate(const SyntheticWorldOptions& options,
                 Rigid3d* global_from_street);
+  // The steps of Generate, in the order of their random draws: the ego's
+  // speed profile and the intersection position (jitter: a draw of Generate),
+  // the seven vehicles, the crossing car's timing (no draws), and the sidewalk
+  // blocks, facades, poles and planters.
+  void PlanEgo(const SyntheticWorldOptions& options, double jitter);
+  void AddVehicles(double duration_s, Rng* rng);
+  void TimeCrossingCar(double duration_s);
+  void AddStaticStructure(Rng* rng);
   void ShadeGround(const Eigen::Vector3d& p,
                    float rgb[3],
                    uint8_t* intensity) const;
@@ -434,7 +442,6 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
   st ^= static_cast<uint64_t>(options.scene_index) * 0xD1B54A32D192ED03ull;
   SplitMix64(st);
   Rng rng(st);
-  const double D = options.duration_s;
   maneuver = options.maneuver >= 0
                  ? static_cast<EgoManeuver>(options.maneuver)
                  : static_cast<EgoManeuver>(options.scene_index % 4);
@@ -449,8 +456,19 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
       offset);
 
   // Ego profile and intersection position.
-  const double v = 8.0;
   const double jitter = rng.Uniform(0, 5);
+  PlanEgo(options, jitter);
+  // Keep the stop-and-wait ego consistent with a far intersection for very
+  // short scenes.
+  AddVehicles(options.duration_s, &rng);
+  TimeCrossingCar(options.duration_s);
+  AddStaticStructure(&rng);
+}
+
+void SyntheticWorld::Impl::PlanEgo(const SyntheticWorldOptions& options,
+                                   double jitter) {
+  const double D = options.duration_s;
+  const double v = 8.0;
   switch (maneuver) {
     case EgoManeuver::kLaneChange: {
       ego_profile = SpeedProfile(v);
@@ -489,12 +507,12 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
       break;
     }
   }
-  // Keep the stop-and-wait ego consistent with a far intersection for very
-  // short scenes.
-  const double xc_ = xc;
+}
 
+void SyntheticWorld::Impl::AddVehicles(double duration_s, Rng* rng) {
+  const double D = duration_s;
   // Vehicles.
-  auto jit = [&](double x) { return x * rng.Uniform(0.95, 1.05); };
+  auto jit = [&](double x) { return x * rng->Uniform(0.95, 1.05); };
   const Eigen::Vector3d car(1.9, 4.6, 1.6), truck(2.5, 8.0, 3.4),
       bus(2.9, 11.0, 3.3);
   const Eigen::Vector3f palette[] = {
@@ -513,8 +531,8 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
     tr.s0 = s0;
     tr.profile = prof;
     tr.parked = parked;
-    tr.color = palette[rng.U32() % 8];
-    tr.tex = rng.U32();
+    tr.color = palette[rng->U32() % 8];
+    tr.tex = rng->U32();
     vehicles.push_back(tr);
   };
   const double lane_r =
@@ -526,70 +544,73 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
   add("vehicle.truck", truck, 0, lane_l, 1, 14.0 + 2.4 + 3.0 + 4.1,
       SpeedProfile(9.5));
   // 2: oncoming car passing the intersection at 0.2 D.
-  add("vehicle.car", car, 0, -lane_l, -1, xc_ + 9.0 * 0.2 * D,
+  add("vehicle.car", car, 0, -lane_l, -1, xc + 9.0 * 0.2 * D,
       SpeedProfile(9.0));
   // 3: car in the right lane that brakes to a stop at the stop line.
   {
-    const double stop_center = xc_ - kStopLineOffset - 0.25 - 2.4;
+    const double stop_center = xc - kStopLineOffset - 0.25 - 2.4;
     add("vehicle.car", car, 0, lane_r, 1, 26.0,
         CruiseThenStop(7.0, stop_center - 26.0, 1.5));
   }
   // 5 (added after 4): oncoming bus passing at 0.3 D.
   // 4: crossing car (cross street, heading -y), timed below.
-  add("vehicle.car", car, 1, xc_ - kLaneWidth / 2, -1, 0.0, SpeedProfile(9.0));
-  add("vehicle.bus.rigid", bus, 0, -lane_r, -1, xc_ + 7.0 * 0.3 * D,
+  add("vehicle.car", car, 1, xc - kLaneWidth / 2, -1, 0.0, SpeedProfile(9.0));
+  add("vehicle.bus.rigid", bus, 0, -lane_r, -1, xc + 7.0 * 0.3 * D,
       SpeedProfile(7.0));
   // 6: parked car in the cross street.
-  add("vehicle.car", car, 1, xc_ + kRoadHalfWidth - 1.0, 1, 24.0,
+  add("vehicle.car", car, 1, xc + kRoadHalfWidth - 1.0, 1, 24.0,
       SpeedProfile(0.0), true);
+}
 
+void SyntheticWorld::Impl::TimeCrossingCar(double duration_s) {
+  const double D = duration_s;
   // Time the crossing car so that it never overlaps the ego or another vehicle.
-  {
-    const double target = maneuver == EgoManeuver::kBrakeAndStop
-                              ? std::max(0.5, 0.55 * D - 4.0) + 5.0
-                              : 0.3 * D;
-    Track& cross = vehicles[4];
-    double best_tc = target, best_score = kInf;
-    for (double tc = -2.0; tc <= D + 2.0; tc += 0.05) {
-      const double score = std::abs(tc - target);
-      if (score >= best_score) continue;
-      cross.s0 = 9.0 * tc;  // y(t) = s0 - 9 t = 0 at tc
-      bool ok = true;
-      for (double tau = tc - 3.0; tau <= tc + 3.0 && ok; tau += 0.1) {
-        const Eigen::Vector3d pc = cross.Pose(tau);
-        const Eigen::Vector3d pe = EgoStreetPose(tau);
-        const Eigen::Vector3d ego_c(pe.x() + 1.4 * std::cos(pe.z()),
-                                    pe.y() + 1.4 * std::sin(pe.z()), pe.z());
-        if (RectsOverlap(pc, cross.size_wlh[1], cross.size_wlh[0], ego_c, 4.8,
-                         1.9, 1.0))
+  const double target = maneuver == EgoManeuver::kBrakeAndStop
+                            ? std::max(0.5, 0.55 * D - 4.0) + 5.0
+                            : 0.3 * D;
+  Track& cross = vehicles[4];
+  double best_tc = target, best_score = kInf;
+  for (double tc = -2.0; tc <= D + 2.0; tc += 0.05) {
+    const double score = std::abs(tc - target);
+    if (score >= best_score) continue;
+    cross.s0 = 9.0 * tc;  // y(t) = s0 - 9 t = 0 at tc
+    bool ok = true;
+    for (double tau = tc - 3.0; tau <= tc + 3.0 && ok; tau += 0.1) {
+      const Eigen::Vector3d pc = cross.Pose(tau);
+      const Eigen::Vector3d pe = EgoStreetPose(tau);
+      const Eigen::Vector3d ego_c(pe.x() + 1.4 * std::cos(pe.z()),
+                                  pe.y() + 1.4 * std::sin(pe.z()), pe.z());
+      if (RectsOverlap(pc, cross.size_wlh[1], cross.size_wlh[0], ego_c, 4.8,
+                       1.9, 1.0))
+        ok = false;
+      for (size_t j = 0; j < vehicles.size() && ok; ++j) {
+        if (j == 4) continue;
+        if (RectsOverlap(pc, cross.size_wlh[1], cross.size_wlh[0],
+                         vehicles[j].Pose(tau), vehicles[j].size_wlh[1],
+                         vehicles[j].size_wlh[0], 1.0)) {
           ok = false;
-        for (size_t j = 0; j < vehicles.size() && ok; ++j) {
-          if (j == 4) continue;
-          if (RectsOverlap(pc, cross.size_wlh[1], cross.size_wlh[0],
-                           vehicles[j].Pose(tau), vehicles[j].size_wlh[1],
-                           vehicles[j].size_wlh[0], 1.0)) {
-            ok = false;
-          }
         }
       }
-      if (ok) {
-        best_score = score;
-        best_tc = tc;
-      }
     }
-    cross.s0 = 9.0 * best_tc;
+    if (ok) {
+      best_score = score;
+      best_tc = tc;
+    }
   }
+  cross.s0 = 9.0 * best_tc;
+}
 
+void SyntheticWorld::Impl::AddStaticStructure(Rng* rng) {
   // ---- Static structure ----
-  const double x_min = -200, x_max = xc_ + 300, y_far = 300;
+  const double x_min = -200, x_max = xc + 300, y_far = 300;
   const double kerb = kRoadHalfWidth, facade = kRoadHalfWidth + kSidewalkWidth;
   // Sidewalk blocks (their sides are the kerbs).
   for (int sx = 0; sx < 2; ++sx) {
     for (int sy = 0; sy < 2; ++sy) {
-      const double x0 = sx ? xc_ + kerb : x_min, x1 = sx ? x_max : xc_ - kerb;
+      const double x0 = sx ? xc + kerb : x_min, x1 = sx ? x_max : xc - kerb;
       const double y0 = sy ? kerb : -y_far, y1 = sy ? y_far : -kerb;
       Box b = Box::Aabb(x0, x1, y0, y1, 0, kKerbHeight, kSidewalk);
-      b.tex = rng.U32();
+      b.tex = rng->U32();
       static_boxes.push_back(b);
     }
   }
@@ -598,25 +619,26 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
       {0.85f, 0.8f, 0.7f},   {0.5f, 0.55f, 0.6f},   {0.72f, 0.55f, 0.4f},
       {0.9f, 0.88f, 0.85f},  {0.45f, 0.42f, 0.4f}};
   auto add_building = [&](double x0, double x1, double y0, double y1) {
-    Box b = Box::Aabb(x0, x1, y0, y1, 0, rng.Uniform(6, 30),
-                      rng.Uniform(0, 1) < 0.35 ? kBrickBuilding : kBuilding);
-    b.tex = rng.U32();
-    b.color = wall_palette[rng.U32() % 8];
+    Box b = Box::Aabb(x0, x1, y0, y1, 0, rng->Uniform(6, 30),
+                      rng->Uniform(0, 1) < 0.35 ? kBrickBuilding : kBuilding);
+    b.tex = rng->U32();
+    b.color = wall_palette[rng->U32() % 8];
     static_boxes.push_back(b);
   };
   // Facades along the main street (both sides, both sides of the intersection).
   for (int side = -1; side <= 1; side += 2) {
     for (int part = 0; part < 2; ++part) {
-      double x = part ? xc_ + facade : x_min;
-      const double end = part ? x_max : xc_ - facade;
+      double x = part ? xc + facade : x_min;
+      const double end = part ? x_max : xc - facade;
       while (x < end - 4) {
-        const double w = std::min(rng.Uniform(8, 22), end - x);
-        const double setback = rng.Uniform(0, 1.5), depth = rng.Uniform(10, 20);
+        const double w = std::min(rng->Uniform(8, 22), end - x);
+        const double setback = rng->Uniform(0, 1.5),
+                     depth = rng->Uniform(10, 20);
         const double ya = side * (facade + setback),
                      yb = side * (facade + setback + depth);
         add_building(x, x + w, std::min(ya, yb), std::max(ya, yb));
-        x += w +
-             (rng.Uniform(0, 1) < 0.2 ? rng.Uniform(4, 7) : rng.Uniform(0, 2));
+        x += w + (rng->Uniform(0, 1) < 0.2 ? rng->Uniform(4, 7)
+                                           : rng->Uniform(0, 2));
       }
     }
   }
@@ -625,14 +647,15 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
     for (int sy = -1; sy <= 1; sy += 2) {
       double y = facade + 23.0;
       while (y < y_far - 4) {
-        const double w = std::min(rng.Uniform(8, 22), y_far - y);
-        const double setback = rng.Uniform(0, 1.5), depth = rng.Uniform(10, 20);
-        const double xa = xc_ + sx * (facade + setback),
-                     xb = xc_ + sx * (facade + setback + depth);
+        const double w = std::min(rng->Uniform(8, 22), y_far - y);
+        const double setback = rng->Uniform(0, 1.5),
+                     depth = rng->Uniform(10, 20);
+        const double xa = xc + sx * (facade + setback),
+                     xb = xc + sx * (facade + setback + depth);
         const double ya = sy * y, yb = sy * (y + w);
         add_building(std::min(xa, xb), std::max(xa, xb), std::min(ya, yb),
                      std::max(ya, yb));
-        y += w + rng.Uniform(0, 2.5);
+        y += w + rng->Uniform(0, 2.5);
       }
     }
   }
@@ -640,27 +663,27 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
   auto add_pole = [&](double x, double y) {
     Box b = Box::Aabb(x - 0.12, x + 0.12, y - 0.12, y + 0.12, kKerbHeight, 7.0,
                       kPole);
-    b.tex = rng.U32();
+    b.tex = rng->U32();
     static_boxes.push_back(b);
   };
   auto add_planter = [&](double x, double y) {
     Box b = Box::Aabb(x - 0.6, x + 0.6, y - 0.6, y + 0.6, kKerbHeight, 0.9,
                       kPlanter);
-    b.tex = rng.U32();
+    b.tex = rng->U32();
     static_boxes.push_back(b);
   };
   for (double x = x_min + 6; x < x_max - 6; x += 20) {
-    if (std::abs(x - xc_) < facade + 1) continue;
+    if (std::abs(x - xc) < facade + 1) continue;
     add_pole(x, -(kerb + 0.6));
     add_pole(x + 10, kerb + 0.6);
-    if (rng.Uniform(0, 1) < 0.35) add_planter(x + 5, -(kerb + 2.2));
-    if (rng.Uniform(0, 1) < 0.35) add_planter(x + 15, kerb + 2.2);
+    if (rng->Uniform(0, 1) < 0.35) add_planter(x + 5, -(kerb + 2.2));
+    if (rng->Uniform(0, 1) < 0.35) add_planter(x + 15, kerb + 2.2);
   }
   for (double y = facade + 4; y < y_far - 6; y += 20) {
-    add_pole(xc_ - kerb - 0.6, y);
-    add_pole(xc_ + kerb + 0.6, -y);
-    add_pole(xc_ - kerb - 0.6, -y - 10);
-    add_pole(xc_ + kerb + 0.6, y + 10);
+    add_pole(xc - kerb - 0.6, y);
+    add_pole(xc + kerb + 0.6, -y);
+    add_pole(xc - kerb - 0.6, -y - 10);
+    add_pole(xc + kerb + 0.6, y + 10);
   }
 }
 

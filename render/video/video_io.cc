@@ -1,4 +1,4 @@
-#include "eval/video_io.h"
+#include "render/video/video_io.h"
 
 #include <algorithm>
 #include <cctype>

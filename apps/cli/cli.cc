@@ -1,0 +1,89 @@
+#include "apps/cli/cli.h"
+
+#include <algorithm>
+#include <iostream>
+#include <map>
+
+#include "geometry/util/status.h"
+
+namespace geodrive {
+
+std::vector<CommandSpec>& CommandRegistry() {
+  static std::vector<CommandSpec> registry;
+  return registry;
+}
+
+int RunCommandLine(const CliProgram& program, int argc, char** argv) {
+  CLI::App app{program.description, program.name};
+  app.set_version_flag("--version", program.version);
+  app.require_subcommand(1);
+  app.fallthrough(false);
+  if (program.add_global_options) program.add_global_options(app);
+  auto& registry = CommandRegistry();
+  std::sort(registry.begin(), registry.end(),
+            [](const CommandSpec& a, const CommandSpec& b) {
+              return a.name < b.name;
+            });
+  std::map<CLI::App*, CommandRunner> runners;
+  try {
+    for (const auto& spec : registry) {
+      CLI::App* sub = app.add_subcommand(spec.name, spec.description);
+      runners[sub] = spec.setup(*sub);
+    }
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line naming the problem, exit 2.
+    std::cerr << program.name << ": error: " << e.what() << " (see `"
+              << program.name << " --help`)" << std::endl;
+    return kExitBadInput;
+  } catch (const InputError& e) {
+    std::cerr << program.name << ": error: " << e.what() << std::endl;
+    return kExitBadInput;
+  }
+  for (auto& [sub, runner] : runners) {
+    if (!sub->parsed()) continue;
+    const std::string who = program.name + " " + sub->get_name();
+    try {
+      if (program.before_run) program.before_run();
+      return runner();
+    } catch (const InputError& e) {
+      std::cerr << who << ": error: " << e.what() << std::endl;
+      return kExitBadInput;
+    } catch (const std::exception& e) {
+      std::cerr << who << ": internal error: " << e.what() << std::endl;
+      return kExitInternal;
+    }
+  }
+  return kExitInternal;
+}
+
+void ParseSizeHxW(const std::string& text,
+                  const std::string& option,
+                  int* height,
+                  int* width) {
+  const std::string what = option + " '" + text + "'";
+  const size_t x = text.find('x');
+  GEODRIVE_CHECK_INPUT(x != std::string::npos, what,
+                       ": expected HxW (height first), e.g. 480x720");
+  try {
+    size_t p1 = 0, p2 = 0;
+    const long h = std::stol(text.substr(0, x), &p1);
+    const long w = std::stol(text.substr(x + 1), &p2);
+    GEODRIVE_CHECK_INPUT(p1 == x && p2 == text.size() - x - 1, what,
+                         ": expected HxW (height first), e.g. 480x720");
+    GEODRIVE_CHECK_INPUT(h >= 1 && w >= 1 && h <= 16384 && w <= 16384, what,
+                         ": height and width must be in 1..16384");
+    *height = static_cast<int>(h);
+    *width = static_cast<int>(w);
+  } catch (const std::logic_error&) {
+    ThrowInputError(what, "expected HxW (height first), e.g. 480x720");
+  }
+}
+
+}  // namespace geodrive

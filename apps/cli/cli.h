@@ -1,0 +1,80 @@
+#pragma once
+// What both binaries (`geodrive`, `geodrive-diffusion`) share on the command
+// line: one subcommand registry, one error ladder with the exit codes, and
+// the parsers of common option values. Each subcommand registers itself:
+//
+//   GEODRIVE_REGISTER_COMMAND(info, "info", "Print what a file is", SetupInfo);
+//
+// where `SetupInfo(CLI::App& sub)` adds options to `sub` and returns the
+// function that runs the command (returning the exit code).
+//
+// Exit codes: 0 ok, 1 internal failure, 2 bad arguments or bad input
+// (InputError, one line on stderr naming the file and the problem), 3
+// completed with failures (batch jobs), 130 interrupted.
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace geodrive {
+
+constexpr int kExitOk = 0;
+constexpr int kExitInternal = 1;
+constexpr int kExitBadInput = 2;
+constexpr int kExitCompletedWithFailures = 3;
+constexpr int kExitInterrupted = 130;
+
+using CommandRunner = std::function<int()>;
+using CommandSetup = std::function<CommandRunner(CLI::App&)>;
+
+struct CommandSpec {
+  std::string name;
+  std::string description;
+  CommandSetup setup;
+};
+
+// The commands registered in this binary (one registry per process).
+std::vector<CommandSpec>& CommandRegistry();
+
+struct CommandRegistrar {
+  CommandRegistrar(const std::string& name,
+                   const std::string& description,
+                   CommandSetup setup) {
+    CommandRegistry().push_back({name, description, std::move(setup)});
+  }
+};
+
+// A binary: its name, --help text and version, and optional global options.
+struct CliProgram {
+  // Binary name as typed ("geodrive").
+  std::string name;
+  // Top-level --help text.
+  std::string description;
+  // Printed by --version.
+  std::string version;
+  // Adds options of the top-level app (e.g. --threads); may be empty.
+  std::function<void(CLI::App&)> add_global_options;
+  // Runs after parsing, before the command (e.g. thread set-up); may be
+  // empty.
+  std::function<void()> before_run;
+};
+
+// Parses argv against the registered commands (sorted by name) and runs the
+// chosen one: the error ladder. --help/--version exit 0; a parse error or an
+// InputError prints one line "<name> [<command>]: error: ..." and returns 2;
+// any other exception "...: internal error: ..." and returns 1.
+int RunCommandLine(const CliProgram& program, int argc, char** argv);
+
+// An image size "HxW" (height first, e.g. 480x720, as every --size of both
+// binaries), each in 1..16384. Throws InputError naming `option`.
+void ParseSizeHxW(const std::string& text,
+                  const std::string& option,
+                  int* height,
+                  int* width);
+
+}  // namespace geodrive
+
+#define GEODRIVE_REGISTER_COMMAND(id, name, description, setup)        \
+  static ::geodrive::CommandRegistrar geodrive_command_registrar_##id( \
+      name, description, setup)

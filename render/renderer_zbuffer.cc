@@ -1,0 +1,361 @@
+// Z-buffer rendering of one frame (renderer.h, kZBuffer): point or disk splats
+// into a per-pixel (depth, index) key buffer, the resolve to RGB / depth /
+// mask / index, and hole filling. Scalar and AVX2 kernels give the same bytes.
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "render/internal/renderer_internal.h"
+#include "render/renderer.h"
+
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+#include <immintrin.h>
+#endif
+
+namespace geodrive {
+namespace renderer_internal {
+namespace {
+
+// Depth-ordered key of a point: for z > 0 the float bits are monotonic, so
+// min(key) picks the nearest point and, among equal depths, the smallest
+// index.
+// Keys stay below 2^63 (z bits <= 0x7f800000), so they also order correctly as
+// signed 64-bit integers (AVX2 has only a signed 64-bit compare).
+constexpr uint64_t kEmptyKey = 0x7fffffffffffffffull;
+inline uint64_t PackKey(float z, int index) {
+  return (static_cast<uint64_t>(FloatBits(z)) << 32) |
+         static_cast<uint32_t>(index);
+}
+
+// Disk splats of one projected block into the key buffer: every pixel of a
+// point's bounding box whose centre is within the radius (d² <= r², float)
+// takes min(key). Returns the number of points that hit at least one pixel.
+// The scalar and AVX2 versions do the same float operations (no FMA) and
+// exact integer minima, so their outputs are identical; min() also makes the
+// result independent of the order in which points are visited.
+int64_t SplatDisksScalar(const ProjectedBlock& blk,
+                         int m,
+                         int base,
+                         float r,
+                         int w,
+                         int h,
+                         uint64_t* kb) {
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const float r2 = r * r;
+  int64_t projected = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!blk.ok[k]) continue;
+    const float u = blk.u[k], v = blk.v[k];
+    if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
+    const int j0 = std::max(0, CeilI(v - r));
+    const int j1 = std::min(h - 1, FloorI(v + r));
+    const int i0 = std::max(0, CeilI(u - r));
+    const int i1 = std::min(w - 1, FloorI(u + r));
+    const uint64_t key = PackKey(blk.z[k], base + k);
+    uint32_t hit = 0;
+    for (int j = j0; j <= j1; ++j) {
+      const float dy = static_cast<float>(j) - v;
+      const float dy2 = dy * dy;
+      uint64_t* row = kb + static_cast<size_t>(j) * w;
+      for (int c = i0; c <= i1; ++c) {
+        const float dx = static_cast<float>(c) - u;
+        const uint32_t in = (dx * dx + dy2) <= r2;
+        const uint64_t cand = in ? key : kEmptyKey;
+        row[c] = std::min(row[c], cand);
+        hit |= in;
+      }
+    }
+    projected += hit;
+  }
+  return projected;
+}
+
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+// Four columns at a time: a float distance test per lane, then a masked
+// 64-bit load / signed compare / masked store.
+__attribute__((target("avx2"))) int64_t SplatDisksAvx2(
+    const ProjectedBlock& blk,
+    int m,
+    int base,
+    float r,
+    int w,
+    int h,
+    uint64_t* kb) {
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const float r2 = r * r;
+  const __m128 vr2 = _mm_set1_ps(r2);
+  const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
+  int64_t projected = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!blk.ok[k]) continue;
+    const float u = blk.u[k], v = blk.v[k];
+    if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
+    const int j0 = std::max(0, CeilI(v - r));
+    const int j1 = std::min(h - 1, FloorI(v + r));
+    const int i0 = std::max(0, CeilI(u - r));
+    const int i1 = std::min(w - 1, FloorI(u + r));
+    const __m256i vkey =
+        _mm256_set1_epi64x(static_cast<long long>(PackKey(blk.z[k], base + k)));
+    const __m128 vu = _mm_set1_ps(u);
+    int hit = 0;
+    for (int c0 = i0; c0 <= i1; c0 += 4) {
+      const __m128i cols = _mm_add_epi32(_mm_set1_epi32(c0), lanes);
+      const __m128i in_box = _mm_cmpgt_epi32(_mm_set1_epi32(i1 + 1), cols);
+      const __m128 dx = _mm_sub_ps(_mm_cvtepi32_ps(cols), vu);
+      const __m128 dx2 = _mm_mul_ps(dx, dx);
+      for (int j = j0; j <= j1; ++j) {
+        const float dy = static_cast<float>(j) - v;
+        const __m128 d2 = _mm_add_ps(dx2, _mm_set1_ps(dy * dy));
+        const __m128i in =
+            _mm_and_si128(_mm_castps_si128(_mm_cmple_ps(d2, vr2)), in_box);
+        const int bits = _mm_movemask_ps(_mm_castsi128_ps(in));
+        if (bits == 0) continue;
+        hit |= bits;
+        const __m256i mask = _mm256_cvtepi32_epi64(in);
+        long long* ptr =
+            reinterpret_cast<long long*>(kb + static_cast<size_t>(j) * w + c0);
+        const __m256i old = _mm256_maskload_epi64(ptr, mask);
+        const __m256i upd =
+            _mm256_and_si256(_mm256_cmpgt_epi64(old, vkey), mask);
+        _mm256_maskstore_epi64(ptr, upd, vkey);
+      }
+    }
+    projected += hit != 0;
+  }
+  return projected;
+}
+#endif
+
+int64_t SplatDisks(const ProjectedBlock& blk,
+                   int m,
+                   int base,
+                   float r,
+                   int w,
+                   int h,
+                   uint64_t* kb) {
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2()) return SplatDisksAvx2(blk, m, base, r, w, h, kb);
+#endif
+  return SplatDisksScalar(blk, m, base, r, w, h, kb);
+}
+
+// Z-buffer resolve: key -> RGB (empty pixels read the black sentinel colour
+// at index n), depth, mask and optionally the point index; every key is reset
+// to empty. Returns the number of valid pixels. The AVX2 version writes the
+// same bytes.
+struct ZResolveArgs {
+  uint64_t* keys;
+  size_t npix;
+  const uint32_t* colors;  // RGBX words, black sentinel at [sentinel]
+  uint32_t sentinel;
+  uint8_t* rgb;
+  uint32_t* depth;  // float bits
+  uint8_t* mask;
+  int32_t* index;  // nullptr: not wanted
+};
+
+int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
+  int64_t valid = 0;
+  for (size_t p = begin; p < a.npix; ++p) {
+    const uint64_t key = a.keys[p];
+    a.keys[p] = kEmptyKey;
+    const uint32_t is_valid = key != kEmptyKey;
+    const uint32_t idx =
+        is_valid ? static_cast<uint32_t>(key & 0xffffffffu) : a.sentinel;
+    const uint32_t c = a.colors[idx];
+    // Bytes 0..2 of the little-endian RGBX word are R, G, B.
+    a.rgb[3 * p] = static_cast<uint8_t>(c);
+    a.rgb[3 * p + 1] = static_cast<uint8_t>(c >> 8);
+    a.rgb[3 * p + 2] = static_cast<uint8_t>(c >> 16);
+    a.depth[p] = is_valid ? static_cast<uint32_t>(key >> 32) : 0u;
+    a.mask[p] = static_cast<uint8_t>(0u - is_valid);
+    if (a.index) a.index[p] = is_valid ? static_cast<int32_t>(idx) : -1;
+    valid += is_valid;
+  }
+  return valid;
+}
+
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+// Eight pixels at a time: split the keys into index and depth halves, gather
+// the colours, shuffle RGBX to RGB.
+__attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
+  const __m256i empty = _mm256_set1_epi64x(static_cast<long long>(kEmptyKey));
+  const __m256i even_odd = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+  const __m256i empty_hi = _mm256_set1_epi32(0x7fffffff);
+  const __m256i sentinel = _mm256_set1_epi32(static_cast<int>(a.sentinel));
+  // Per 128-bit lane: RGBX x 4 -> RGB x 4 (12 bytes), and byte 0 of each
+  // 32-bit word -> 4 bytes.
+  const __m256i rgb_shuffle =
+      _mm256_setr_epi8(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1,
+                       0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1);
+  const __m256i byte0_shuffle = _mm256_setr_epi8(
+      0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12,
+      -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
+  int64_t valid = 0;
+  size_t p = 0;
+  // The second 16-byte RGB store reaches 4 bytes past the 8 pixels: stop
+  // while 2 more pixels remain, the scalar tail does the rest.
+  for (; p + 10 <= a.npix; p += 8) {
+    __m256i* kp = reinterpret_cast<__m256i*>(a.keys + p);
+    const __m256i k0 = _mm256_loadu_si256(kp);
+    const __m256i k1 = _mm256_loadu_si256(kp + 1);
+    _mm256_storeu_si256(kp, empty);
+    _mm256_storeu_si256(kp + 1, empty);
+    const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
+    const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
+    const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
+    const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
+    const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
+    const __m256i idx = _mm256_blendv_epi8(lo, sentinel, invalid);
+    const __m256i col =
+        _mm256_i32gather_epi32(reinterpret_cast<const int*>(a.colors), idx, 4);
+    const __m256i rgb = _mm256_shuffle_epi8(col, rgb_shuffle);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p),
+                     _mm256_castsi256_si128(rgb));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p + 12),
+                     _mm256_extracti128_si256(rgb, 1));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.depth + p),
+                        _mm256_andnot_si256(invalid, hi));
+    if (a.index) {
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p),
+                          _mm256_or_si256(lo, invalid));
+    }
+    const __m256i m = _mm256_shuffle_epi8(
+        _mm256_andnot_si256(invalid, _mm256_set1_epi32(0xff)), byte0_shuffle);
+    const uint64_t mask8 = static_cast<uint32_t>(_mm256_extract_epi32(m, 0)) |
+                           (static_cast<uint64_t>(static_cast<uint32_t>(
+                                _mm256_extract_epi32(m, 4)))
+                            << 32);
+    std::memcpy(a.mask + p, &mask8, 8);
+    valid += 8 - __builtin_popcount(static_cast<unsigned>(
+                     _mm256_movemask_ps(_mm256_castsi256_ps(invalid))));
+  }
+  return valid + ResolveZScalar(a, p);
+}
+#endif
+
+int64_t ResolveZBuffer(const ZResolveArgs& a) {
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2()) return ResolveZAvx2(a);
+#endif
+  return ResolveZScalar(a, 0);
+}
+
+}  // namespace
+
+// Z-buffer. Each pixel keeps the minimum key (z, index), so among equal depths
+// the smallest index wins, whatever the processing order or thread count.
+GEODRIVE_HOT_CLONES
+void RenderZBuffer(const PackedCloud& soa,
+                   const std::vector<ProjectedRange>& ranges,
+                   const RenderOptions& options,
+                   Scratch* scratch,
+                   RenderedFrame* frame) {
+  const int w = options.width, h = options.height;
+  const size_t npix = static_cast<size_t>(w) * h;
+  // One 64-bit key per pixel (z bits << 32 | point index) and one spare slot
+  // that absorbs the writes of points outside the image (branch-free splat).
+  // The resolve pass below leaves every key empty again, so the buffer is
+  // only cleared when its size changes.
+  std::vector<uint64_t>& keys = scratch->zkeys;
+  if (keys.size() != npix + 1) keys.assign(npix + 1, kEmptyKey);
+  uint64_t* kb = keys.data();
+  ProjectedBlock& blk = scratch->block;
+  const int n = static_cast<int>(soa.size());
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  int64_t projected = 0;
+  const float r = static_cast<float>(options.radius_px);
+  for (const ProjectedRange& range : ranges) {
+    for (int base = range.begin; base < range.end; base += kBlock) {
+      const int m = std::min(kBlock, range.end - base);
+      ProjectBlock(soa, base, m, range.proj, &blk);
+      if (r <= 0) {
+        // Pixel (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5) in
+        // shifted coordinates.
+        for (int k = 0; k < m; ++k) {
+          // 0 <= fu < W and 0 <= fv < H from sign bits (vectorises; see
+          // ProjectBlock).
+          const float fu = blk.u[k] + 0.5f, fv = blk.v[k] + 0.5f;
+          const int32_t in =
+              blk.ok[k] &
+              static_cast<int32_t>((SignBit(fu) ^ 1u) & SignBit(fu - fw) &
+                                   (SignBit(fv) ^ 1u) & SignBit(fv - fh));
+          const float su = in ? fu : 0.0f, sv = in ? fv : 0.0f;
+          const int32_t pix =
+              static_cast<int32_t>(sv) * w + static_cast<int32_t>(su);
+          blk.ok[k] = in ? pix : static_cast<int32_t>(npix);
+          projected += in;
+        }
+        for (int k = 0; k < m; ++k) {
+          uint64_t* slot = kb + blk.ok[k];
+          const uint64_t key = PackKey(blk.z[k], base + k);
+          if (key < *slot) *slot = key;
+        }
+        continue;
+      }
+      projected += SplatDisks(blk, m, base, r, w, h, kb);
+    }
+  }
+  frame->num_projected = projected;
+
+  // Resolve, and clear the keys for the next frame. The per-pixel point index
+  // is kept only when something reads it.
+  std::vector<int32_t>& index = scratch->index;
+  const bool need_index =
+      options.hole_fill || options.output_index || options.output_instance;
+  if (need_index) index.resize(npix);
+  ZResolveArgs args{kb,
+                    npix,
+                    soa.rgbx.data(),
+                    static_cast<uint32_t>(n),
+                    frame->rgb.ptr<uint8_t>(),
+                    reinterpret_cast<uint32_t*>(frame->depth.ptr<float>()),
+                    frame->mask.ptr<uint8_t>(),
+                    need_index ? index.data() : nullptr};
+  frame->num_valid = ResolveZBuffer(args);
+}
+
+// One hole-filling pass; returns the number of pixels filled.
+int64_t HoleFillPass(const RenderOptions& options,
+                     std::vector<int32_t>* index,
+                     RenderedFrame* frame) {
+  const int w = options.width, h = options.height;
+  const cv::Mat mask0 = frame->mask.clone();
+  const cv::Mat depth0 = frame->depth.clone();
+  const cv::Mat rgb0 = frame->rgb.clone();
+  const std::vector<int32_t> index0 = *index;
+  int64_t filled = 0;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      if (mask0.at<uint8_t>(y, x) != kMaskInvalid) continue;
+      int count = 0, best_x = -1, best_y = -1;
+      float best_z = 0;
+      int32_t best_idx = 0;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= w || ny >= h)
+            continue;
+          if (mask0.at<uint8_t>(ny, nx) == kMaskInvalid) continue;
+          ++count;
+          const float z = depth0.at<float>(ny, nx);
+          const int32_t idx = index0[static_cast<size_t>(ny) * w + nx];
+          if (best_x < 0 || z < best_z || (z == best_z && idx < best_idx)) {
+            best_x = nx, best_y = ny, best_z = z, best_idx = idx;
+          }
+        }
+      }
+      if (count < options.hole_fill_min_neighbors) continue;
+      frame->rgb.at<cv::Vec3b>(y, x) = rgb0.at<cv::Vec3b>(best_y, best_x);
+      frame->depth.at<float>(y, x) = best_z;
+      frame->mask.at<uint8_t>(y, x) = kMaskFilled;
+      (*index)[static_cast<size_t>(y) * w + x] = best_idx;
+      ++filled;
+    }
+  }
+  return filled;
+}
+
+}  // namespace renderer_internal
+}  // namespace geodrive
