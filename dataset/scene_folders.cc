@@ -27,8 +27,7 @@ SceneFolders::SceneFolders(std::string root,
     ++number;
     const size_t first = line.find_first_not_of(" \t\r");
     if (first == std::string::npos || line[first] == '#') continue;
-    const std::string where =
-        mapping_file + ":" + std::to_string(number);
+    const std::string where = mapping_file + ":" + std::to_string(number);
     if (line[first] == '{') {  // clips.jsonl of `geodrive clips`
       nlohmann::json j;
       try {
@@ -50,10 +49,9 @@ SceneFolders::SceneFolders(std::string root,
     GEODRIVE_CHECK_INPUT(
         static_cast<bool>(fields >> folder >> clip) && !(fields >> extra),
         where, ": expected '<folder name> <clip id>'");
-    GEODRIVE_CHECK_INPUT(folder.find("..") == std::string::npos &&
-                             folder.front() != '/',
-                         where, ": folder '", folder,
-                         "' must be a name inside the root");
+    GEODRIVE_CHECK_INPUT(
+        folder.find("..") == std::string::npos && folder.front() != '/', where,
+        ": folder '", folder, "' must be a name inside the root");
     folder_of_clip_[clip] = folder;
   }
 }
@@ -64,15 +62,25 @@ bool SceneFolders::Usable(const std::string& dir) const {
   return marker_.empty() || fs::exists(fs::path(dir) / marker_, ec);
 }
 
+namespace {
+bool IsDirectory(const std::string& dir) {
+  std::error_code ec;
+  return fs::is_directory(dir, ec);
+}
+}  // namespace
+
 std::optional<std::string> SceneFolders::Find(
     const std::string& clip_id) const {
   std::vector<std::string> names = {clip_id};
   const auto it = folder_of_clip_.find(clip_id);
   if (it != folder_of_clip_.end()) names.push_back(it->second);
   for (const std::string& name : names) {
+    // A folder that exists is the clip's (a broken one is then a per-clip
+    // failure, not a skip), unless only its reconstruction/ holds the marker.
     const std::string dir = root_ + "/" + name;
-    if (Usable(dir)) return dir;
-    if (Usable(dir + "/reconstruction")) return dir + "/reconstruction";
+    if (!Usable(dir) && Usable(dir + "/reconstruction"))
+      return dir + "/reconstruction";
+    if (IsDirectory(dir)) return dir;
   }
   return std::nullopt;
 }

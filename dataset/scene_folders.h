@@ -9,8 +9,9 @@
 //   ROOT/<name>/[reconstruction/]    any name, through a mapping
 // A mapping file is either the clips.jsonl of `geodrive clips` (clip_id and
 // index -> sample_%06d) or a text file of "<folder name> <clip id>" lines
-// ('#' comments). A candidate counts when it holds `marker` (pred_traj.txt for
-// MonST3R; empty = any folder).
+// ('#' comments). An existing folder is the clip's; its reconstruction/
+// subfolder is taken instead when only that one holds `marker`
+// (pred_traj.txt for MonST3R; empty = none).
 
 #include <map>
 #include <optional>

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "dataset/scene_folders.h"
 #include "geometry/npy.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
@@ -29,8 +30,8 @@ Rigid3d WorldFromCam(int i) {
   const Rigid3d world_from_cam0(
       Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitY())),
       Eigen::Vector3d(5, -1, 2));
-  return world_from_cam0 * Rigid3d(Eigen::Quaterniond::Identity(),
-                                   Eigen::Vector3d(0, 0, i));
+  return world_from_cam0 *
+         Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, i));
 }
 
 std::string PoseJson(const Rigid3d& pose) {
@@ -40,7 +41,7 @@ std::string PoseJson(const Rigid3d& pose) {
   os << "[";
   for (int row = 0; row < 4; ++row) {
     for (int col = 0; col < 4; ++col) {
-      const double v = row == 3 ? (col == 3 ? 1.0 : 0.0)
+      const double v = row == 3   ? (col == 3 ? 1.0 : 0.0)
                        : col == 3 ? pose.translation[row]
                                   : r(row, col);
       os << v << (row == 3 && col == 3 ? "]" : ", ");
@@ -56,7 +57,8 @@ std::string MakeDepthFolder(const std::string& name) {
   std::vector<float> depth(kW * kH);
   for (int v = 0; v < kH; ++v)
     for (int u = 0; u < kW; ++u) depth[v * kW + u] = 8.0f + 0.1f * u;
-  WriteNpy(dir + "/depth/000000.npy", NpyArray::Float32({kH, kW}, depth.data()));
+  WriteNpy(dir + "/depth/000000.npy",
+           NpyArray::Float32({kH, kW}, depth.data()));
   std::ofstream json(dir + "/cameras.json");
   json << "{\"units\": \"metres\", \"frames\": [";
   for (int i = 0; i < 3; ++i) {
@@ -109,8 +111,8 @@ TEST(SceneSource, DepthFolderUnprojectsFrameZeroAndComposesPoses) {
     const int u = static_cast<int>(k % kW), v = static_cast<int>(k / kW);
     const double z = 8.0f + 0.1f * u;
     const Eigen::Vector3d truth((u - kCx) * z / kFx, (v - kCy) * z / kFy, z);
-    worst = std::max(
-        worst, (scene.cloud.positions[k].cast<double>() - truth).norm());
+    worst = std::max(worst,
+                     (scene.cloud.positions[k].cast<double>() - truth).norm());
     EXPECT_EQ(scene.cloud.colors[k], Color3u8(10, 20, 30));
   }
   EXPECT_LT(worst, 1e-5);  // float32 positions of metre-scale points
@@ -135,7 +137,8 @@ TEST(SceneSource, DepthFolderPaperFilterKeepsTheDepthRange) {
   const std::string dir = MakeDepthFolder("scene_depth_folder_range");
   SceneSourceOptions o;
   o.max_depth_m = 9.0;
-  const ConditionScene scene = BuildConditionScene("depth-folder", Inputs(dir), o);
+  const ConditionScene scene =
+      BuildConditionScene("depth-folder", Inputs(dir), o);
   EXPECT_EQ(scene.cloud.size(), static_cast<size_t>(11 * kH));
   o.max_depth_m = 7.0;  // nothing left: an error naming the depth file
   try {
@@ -170,15 +173,52 @@ TEST(SceneSource, PlaceTrajectoryAnchorsAtFrameZero) {
   scene.anchor = TrajectoryAnchor::kFirstFrame;
   scene.scene_from_cam0 = WorldFromCam(0);
   Trajectory user;
-  user.Add(0, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(7, 7, 7)));
-  user.Add(1, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(7, 7, 9)));
+  user.Add(0,
+           Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(7, 7, 7)));
+  user.Add(1,
+           Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(7, 7, 9)));
   const Trajectory placed = scene.PlaceTrajectory(user);
   const Rigid3d expect = WorldFromCam(2);  // 2 m forward of camera 0
-  EXPECT_NEAR((placed.world_from_cam[1].translation - expect.translation).norm(),
-              0, 1e-12);
+  EXPECT_NEAR(
+      (placed.world_from_cam[1].translation - expect.translation).norm(), 0,
+      1e-12);
   scene.anchor = TrajectoryAnchor::kAbsolute;
   EXPECT_EQ(scene.PlaceTrajectory(user).world_from_cam[1].translation,
             Eigen::Vector3d(7, 7, 9));
+}
+
+// Per-clip folders in the layouts users have (dataset/scene_folders.h).
+TEST(SceneFolders, FindsClipFoldersInEveryLayout) {
+  const std::string root = test::MakeTempDir("scene_folders");
+  auto make = [&](const std::string& rel, bool marker) {
+    fs::create_directories(root + "/" + rel);
+    if (marker) std::ofstream(root + "/" + rel + "/pred_traj.txt") << "\n";
+  };
+  make("a_0000", true);                        // ROOT/<clip_id>/
+  make("b_0000/reconstruction", true);         // ROOT/<clip_id>/reconstruction/
+  make("sample_000007/reconstruction", true);  // upstream numbering
+  make("broken_0000", false);  // exists: the clip's (fails later)
+  make("lady-running", true);  // any name, mapped
+  const std::string map = root + "/map.txt";
+  std::ofstream(map) << "# folder clip\nlady-running c_0000\n"
+                        "{\"clip_id\":\"d_0000\",\"index\":7}\n";
+  const SceneFolders f(root, map, "pred_traj.txt");
+  EXPECT_EQ(f.Find("a_0000").value(), root + "/a_0000");
+  EXPECT_EQ(f.Find("b_0000").value(), root + "/b_0000/reconstruction");
+  EXPECT_EQ(f.Find("c_0000").value(), root + "/lady-running");
+  EXPECT_EQ(f.Find("d_0000").value(), root + "/sample_000007/reconstruction");
+  EXPECT_EQ(f.Find("broken_0000").value(), root + "/broken_0000");
+  EXPECT_FALSE(f.Find("e_0000").has_value());
+  std::ofstream(map) << "lady-running\n";
+  try {
+    SceneFolders bad(root, map, "pred_traj.txt");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(),
+                HasSubstr("map.txt:1: expected '<folder name> <clip id>'"));
+  }
+  std::ofstream(map) << "../etc c_0000\n";
+  EXPECT_THROW(SceneFolders(root, map, "pred_traj.txt"), InputError);
 }
 
 }  // namespace
