@@ -13,6 +13,7 @@
 #include "geometry/pointmap.h"
 #include "geometry/pose_refinement.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -116,12 +117,7 @@ int RunRefine(RefineArgs a) {
         {"loss_scale_px", a.options.loss_scale_px},
         {"pointmaps", folder.has_raw_pointmaps() ? "pts3d" : "depth+pose"},
         {"frames", summary}};
-    const std::string tmp = summary_path + ".tmp";
-    std::ofstream os(tmp);
-    GEODRIVE_CHECK_INPUT(static_cast<bool>(os), summary_path, ": cannot write");
-    os << doc.dump(2) << "\n";
-    os.close();
-    std::filesystem::rename(tmp, summary_path);
+    WriteFileAtomic(summary_path, doc.dump(2) + "\n");
   }
   std::cout << a.out << ": " << refined.size() << " poses (" << format << "), "
             << skipped << " skipped; summary " << summary_path << "\n";

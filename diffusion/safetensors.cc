@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -447,11 +448,7 @@ void SaveSafetensors(const std::string& path,
       ThrowInputError(path, "write failed");
     }
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    ThrowInputError(path, "cannot rename ", tmp, " into place (",
-                    std::strerror(errno), ")");
-  }
+  CommitTemporaryFile(tmp, path);
 }
 
 }  // namespace diffusion

@@ -23,6 +23,7 @@
 #include "diffusion/schedule.h"
 #include "diffusion/vae.h"
 #include "diffusion/vae_config.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -684,12 +685,11 @@ void WriteLogs(const std::string& out,
                const TrainOptions& o,
                const std::vector<TrainLogRow>& rows) {
   {
-    std::ofstream csv(out + "/train_log.csv.tmp", std::ios::trunc);
+    std::ostringstream csv;
     csv << kCsvHeader << "\n";
     for (const auto& r : rows) csv << CsvLine(r) << "\n";
-    GEODRIVE_CHECK_INPUT(csv.good(), out, "/train_log.csv: write failed");
+    WriteFileAtomic(out + "/train_log.csv", csv.str());
   }
-  fs::rename(out + "/train_log.csv.tmp", out + "/train_log.csv");
   nlohmann::json j;
   j["config"] = o.config;
   j["pairs"] = o.pairs;
@@ -710,10 +710,7 @@ void WriteLogs(const std::string& out,
     arr.push_back(e);
   }
   j["log"] = arr;
-  std::ofstream js(out + "/train_log.json.tmp", std::ios::trunc);
-  js << j.dump(1) << "\n";
-  js.close();
-  fs::rename(out + "/train_log.json.tmp", out + "/train_log.json");
+  WriteFileAtomic(out + "/train_log.json", j.dump(1) + "\n");
 }
 
 void DrawTrainProgress(const TrainLogRow& r,

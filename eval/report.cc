@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace fs = std::filesystem;
@@ -34,14 +35,7 @@ nlohmann::json Num(double v) {
 }
 
 void WriteText(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    GEODRIVE_CHECK_INPUT(out.good(), path, ": cannot be written");
-    out << text;
-    GEODRIVE_CHECK_INPUT(out.good(), path, ": write failed");
-  }
-  fs::rename(tmp, path);
+  WriteFileAtomic(path, text);
 }
 
 std::string Fixed(double v, int digits) {

@@ -6,9 +6,10 @@
 #include <iomanip>
 #include <nlohmann/json.hpp>
 
+#include "geometry/trajectory_io.h"
+#include "geometry/util/files.h"
 #include "geometry/util/json_fields.h"
 #include "geometry/util/status.h"
-#include "geometry/trajectory_io.h"
 
 namespace geodrive {
 namespace {
@@ -16,11 +17,6 @@ namespace {
 using json = nlohmann::json;
 using internal::JsonNumber;
 using internal::JsonVector;
-
-bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 }  // namespace
 
@@ -157,17 +153,7 @@ void WriteTrajectoryJson(const std::string& path,
          {"quaternion_wxyz", {q[0], q[1], q[2], q[3]}}});
   }
   root["frames"] = frames;
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) ThrowInputError(path, "cannot write trajectory file");
-    out << std::setprecision(17) << root.dump(2) << "\n";
-    if (!out) ThrowInputError(path, "write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec)
-    ThrowInputError(path, "cannot rename temporary file (", ec.message(), ")");
+  WriteFileAtomic(path, root.dump(2) + "\n");
 }
 
 TrajectoryFormat ParseTrajectoryFormat(const std::string& text) {

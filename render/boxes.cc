@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "geometry/util/files.h"
 #include "geometry/util/json_fields.h"
 #include "geometry/util/status.h"
 
@@ -297,17 +298,7 @@ void WriteBoxesJson(const std::string& path, const BoxSequences& boxes) {
     instances.push_back(std::move(ji));
   }
   root["instances"] = std::move(instances);
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) ThrowInputError(path, "cannot write boxes file");
-    out << root.dump(1) << "\n";
-    if (!out) ThrowInputError(path, "write failed");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    ThrowInputError(path, "cannot rename the temporary file into place");
-  }
+  WriteFileAtomic(path, root.dump(1) + "\n");
 }
 
 }  // namespace geodrive

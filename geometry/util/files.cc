@@ -89,11 +89,7 @@ void WriteViaTemporary(
     std::remove(tmp.c_str());
     ThrowInputError(path, "cannot write");
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    std::remove(tmp.c_str());
-    ThrowInputError(path, "cannot write (", std::strerror(err), ")");
-  }
+  CommitTemporaryFile(tmp, path);
 }
 
 std::string LowerFileName(const std::string& path) {
@@ -116,6 +112,17 @@ void FsyncPath(const std::string& path, bool directory) {
   if (fd >= 0) {
     ::fsync(fd);
     ::close(fd);
+  }
+}
+}  // namespace
+
+namespace {
+// rename(tmp, path); on failure removes tmp and throws naming `path`.
+void RenameIntoPlace(const std::string& tmp, const std::string& path) {
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    ThrowInputError(path, "rename failed (", std::strerror(err), ")");
   }
 }
 }  // namespace
@@ -144,11 +151,24 @@ void WriteFileAtomic(const std::string& path, const void* bytes, size_t size) {
     ::unlink(tmp.c_str());
     ThrowInputError(path, "write failed (", std::strerror(err), ")");
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+  RenameIntoPlace(tmp, path);
+}
+
+void CommitTemporaryFile(const std::string& tmp, const std::string& path) {
+  const int fd = ::open(tmp.c_str(), O_RDONLY);
+  if (fd < 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
-    ThrowInputError(path, "rename failed (", std::strerror(err), ")");
+    ThrowInputError(path, "cannot write (", std::strerror(err), ")");
   }
+  const bool synced = ::fsync(fd) == 0 || errno == EINVAL;
+  const int sync_err = errno;
+  ::close(fd);
+  if (!synced) {
+    ::unlink(tmp.c_str());
+    ThrowInputError(path, "write failed (", std::strerror(sync_err), ")");
+  }
+  RenameIntoPlace(tmp, path);
 }
 
 void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir) {

@@ -42,6 +42,12 @@ inline void WriteFileAtomic(const std::string& path,
   WriteFileAtomic(path, content.data(), content.size());
 }
 
+// The commit step of every atomic write: fsyncs the finished temporary file
+// `tmp` (written by a library that wants a path: FFmpeg, OpenCV, PCL, a
+// stream) and renames it to `path`; removes it and throws naming `path` on
+// failure. WriteFileAtomic and WriteViaTemporary end with it.
+void CommitTemporaryFile(const std::string& tmp, const std::string& path);
+
 // Renames a completed temporary folder to its final name (atomic on one
 // filesystem) after fsync-ing its files. Throws InputError if `final_dir`
 // already exists or the rename fails.
@@ -64,8 +70,8 @@ class JsonlAppender {
 };
 
 // Runs `write_to(temporary_path)` (which returns false or throws on failure)
-// and renames the temporary file to `path`; removes the temporary file on
-// failure.
+// and commits the temporary file to `path` (CommitTemporaryFile); removes it
+// on failure.
 void WriteViaTemporary(const std::string& path,
                        const std::string& keep_suffix,
                        const std::function<bool(const std::string&)>& write_to);

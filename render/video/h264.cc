@@ -12,6 +12,7 @@ extern "C" {
 #include <memory>
 #include <opencv2/imgproc.hpp>
 
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -183,8 +184,7 @@ void WriteH264Mp4(const std::string& path,
                        ")");
   avio_closep(&c.fmt->pb);
   c.io_open = false;
-  GEODRIVE_CHECK_INPUT(std::rename(tmp.c_str(), path.c_str()) == 0, path,
-                       ": rename failed");
+  CommitTemporaryFile(tmp, path);
 }
 
 }  // namespace geodrive
