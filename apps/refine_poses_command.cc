@@ -42,9 +42,6 @@ int RunRefine(RefineArgs a) {
   a.filter.Check();
   const Monst3rFolder folder = Monst3rFolder::Open(a.monst3r);
   const std::vector<int> frames = ParseFrameList(a.frames, folder.num_frames());
-  Monst3rLoadOptions lo;
-  lo.rgb = false;
-  lo.raw_pointmaps = true;
   if (!folder.has_raw_pointmaps()) {
     std::cerr << "note: " << a.monst3r
               << " has no pts3d_{i}.npy pointmaps; O_t is built from depth and "
@@ -52,18 +49,8 @@ int RunRefine(RefineArgs a) {
                  "so the refinement checks consistency (and the focal with "
                  "--refine-focal)\n";
   }
-  std::vector<PoseRefinementInput> inputs;
-  for (const auto& f : folder.LoadFrames(frames, lo)) {
-    const Pointmap pm = BuildPointmap(f);
-    PoseRefinementInput in;
-    in.frame_index = f.index;
-    in.camera = f.camera;
-    in.initial_world_from_cam = f.world_from_cam;
-    in.points_in_world = f.raw_points_in_world.empty() ? pm.points_in_world
-                                                       : f.raw_points_in_world;
-    in.valid_mask = ComputeValidMask(pm, a.filter);
-    inputs.push_back(std::move(in));
-  }
+  const std::vector<PoseRefinementInput> inputs =
+      PoseRefinementInputs(folder, frames, a.filter);
   const auto results = RefineClipPoses(inputs, a.options, a.joint);
 
   Trajectory refined;

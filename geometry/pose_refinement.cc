@@ -527,4 +527,26 @@ std::vector<PoseRefinementResult> RefineClipPoses(
   return results;
 }
 
+std::vector<PoseRefinementInput> PoseRefinementInputs(
+    const Monst3rFolder& folder,
+    const std::vector<int>& frames,
+    const PointmapFilterOptions& filter) {
+  Monst3rLoadOptions lo;
+  lo.rgb = false;
+  lo.raw_pointmaps = folder.has_raw_pointmaps();
+  std::vector<PoseRefinementInput> inputs;
+  for (const Monst3rFrame& f : folder.LoadFrames(frames, lo)) {
+    const Pointmap pm = BuildPointmap(f);
+    PoseRefinementInput in;
+    in.frame_index = f.index;
+    in.camera = f.camera;
+    in.initial_world_from_cam = f.world_from_cam;
+    in.points_in_world = f.raw_points_in_world.empty() ? pm.points_in_world
+                                                       : f.raw_points_in_world;
+    in.valid_mask = ComputeValidMask(pm, filter);
+    inputs.push_back(std::move(in));
+  }
+  return inputs;
+}
+
 }  // namespace geodrive

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "geometry/camera.h"
+#include "geometry/pointmap.h"
 #include "geometry/rigid3.h"
 
 namespace geodrive {
@@ -129,5 +130,14 @@ std::vector<PoseRefinementResult> RefineClipPoses(
     const std::vector<PoseRefinementInput>& inputs,
     const PoseRefinementOptions& options,
     bool joint);
+
+// The eq. 3 inputs of a MonST3R folder's `frames`: O_t is pts3d_t.npy when
+// the folder has it, else frame t's depth unprojected with its stored pose
+// (then the refinement checks consistency); the pixels kept are those
+// `filter` keeps; the initial pose is the stored one.
+std::vector<PoseRefinementInput> PoseRefinementInputs(
+    const Monst3rFolder& folder,
+    const std::vector<int>& frames,
+    const PointmapFilterOptions& filter);
 
 }  // namespace geodrive

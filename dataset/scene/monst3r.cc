@@ -66,24 +66,10 @@ Trajectory RefinePoses(const Monst3rFolder& folder,
   filter.min_depth = 0.0;
   filter.max_depth = std::numeric_limits<double>::infinity();
   filter.selection = PixelSelection::kStaticOnly;
-  Monst3rLoadOptions lo;
-  lo.rgb = false;
-  lo.raw_pointmaps = folder.has_raw_pointmaps();
   std::vector<int> frames(folder.num_frames());
   for (int i = 0; i < folder.num_frames(); ++i) frames[i] = i;
-  std::vector<PoseRefinementInput> inputs;
-  for (const Monst3rFrame& f : folder.LoadFrames(frames, lo)) {
-    const Pointmap pm = BuildPointmap(f);
-    PoseRefinementInput input;
-    input.frame_index = f.index;
-    input.camera = f.camera;
-    input.initial_world_from_cam = f.world_from_cam;
-    input.points_in_world = f.raw_points_in_world.empty()
-                                ? pm.points_in_world
-                                : f.raw_points_in_world;
-    input.valid_mask = ComputeValidMask(pm, filter);
-    inputs.push_back(std::move(input));
-  }
+  const std::vector<PoseRefinementInput> inputs =
+      PoseRefinementInputs(folder, frames, filter);
   PoseRefinementOptions ro;  // seeded sampling: deterministic
   const std::vector<PoseRefinementResult> results =
       RefineClipPoses(inputs, ro, /*joint=*/false);
@@ -218,7 +204,8 @@ class Monst3rSceneSource : public SceneSource {
         ThrowInputError(in.path, "MonST3R images are ", folder.width(), "x",
                         folder.height(), " but the clip's ", cam.width, "x",
                         cam.height, " images map to ", spec.width, "x",
-                        spec.height, " (512 long side): not this clip's folder");
+                        spec.height,
+                        " (512 long side): not this clip's folder");
       }
     }
     ConditionScene scene = options.filter == PointmapFilter::kPaper
