@@ -95,7 +95,7 @@ int Run(Args& a) {
 #endif
   InstallStopSignalHandlers();
   const BuildDatasetSummary s = BuildDataset(o);
-  int failed = s.failed, interrupted = s.interrupted;
+  int failed = s.failed + s.log_write_errors, interrupted = s.interrupted;
 #ifdef GEODRIVE_WITH_MPI
   if (mpi) {
     MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
@@ -244,6 +244,9 @@ CommandRunner Setup(CLI::App& app) {
           {"none", PairExport::kNone},
           {"geodrive-upstream", PairExport::kGeodriveUpstream}}))
       ->default_str("none");
+  app.add_flag("--keep-mismatched", o.keep_mismatched,
+               "Keep pairs of OUT built with other content options (reported) "
+               "instead of rebuilding them");
   app.add_flag("--quiet", o.quiet, "No progress output");
   app.add_option("--merge", a->merge,
                  "Merge the shard outputs in this folder (manifest, failures, "

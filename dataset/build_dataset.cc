@@ -125,6 +125,11 @@ std::string BuildDatasetSummary::BriefReport() const {
      << skipped_existing;
   if (skipped_no_monst3r)
     os << ", skipped (no MonST3R folder) " << skipped_no_monst3r;
+  if (rebuilt_broken) os << ", rebuilt (broken) " << rebuilt_broken;
+  if (rebuilt_mismatched)
+    os << ", rebuilt (other options) " << rebuilt_mismatched;
+  if (kept_mismatched) os << ", kept (other options) " << kept_mismatched;
+  if (log_write_errors) os << ", log write errors " << log_write_errors;
   os << ", failed " << failed;
   for (const auto& [stage, n] : failures_by_stage)
     os << " [" << stage << ": " << n << "]";
@@ -141,6 +146,88 @@ namespace {
 using internal::BuildPair;
 using internal::ClipContext;
 using internal::StageError;
+
+// Appends a line; returns the error instead of throwing (a log that cannot be
+// written fails the run, it does not abort it).
+std::string AppendLine(JsonlAppender* log, const std::string& line) {
+  try {
+    log->Append(line);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+enum class PairState { kMissing, kComplete, kOtherOptions, kBroken };
+
+// A pair folder counts as finished when its meta.json reads, its options hash
+// is this run's, and every file it lists is there with its recorded size.
+PairState VerifyPair(const std::string& dir,
+                     const std::string& options_hash,
+                     std::string* why) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return PairState::kMissing;
+  PairMeta meta;
+  try {
+    meta = ReadPairMeta(dir);
+  } catch (const std::exception& e) {
+    *why = e.what();
+    return PairState::kBroken;
+  }
+  if (meta.options_hash != options_hash) {
+    *why = "options_hash " + meta.options_hash;
+    return PairState::kOtherOptions;
+  }
+  for (const auto& [role, name] : meta.files) {
+    const std::string path = dir + "/" + name;
+    if (!fs::exists(path, ec)) {
+      *why = path + " (" + role + ") is missing";
+      return PairState::kBroken;
+    }
+    const auto size = meta.file_sizes.find(name);
+    if (size != meta.file_sizes.end() && fs::is_regular_file(path, ec) &&
+        fs::file_size(path, ec) != size->second) {
+      *why = path + " is " + std::to_string(fs::file_size(path, ec)) +
+             " bytes, meta.json says " + std::to_string(size->second);
+      return PairState::kBroken;
+    }
+  }
+  return PairState::kComplete;
+}
+
+// Puts a freshly built pair in place, replacing an existing (stale or broken)
+// one: the old folder is moved aside first, so a crash leaves either the old
+// or the new pair (RecoverClipFolders restores the old one).
+void ReplaceDirectory(const std::string& tmp, const std::string& final_dir) {
+  std::error_code ec;
+  const fs::path final_path(final_dir);
+  const std::string aside = (final_path.parent_path() /
+                             (".replaced-" + final_path.filename().string()))
+                                .string();
+  const bool replacing = fs::exists(final_dir, ec);
+  if (replacing) {
+    fs::remove_all(aside, ec);
+    fs::rename(final_dir, aside, ec);
+    GEODRIVE_CHECK_INPUT(!ec, final_dir, ": cannot move the old pair aside (",
+                         ec.message(), ")");
+  }
+  CommitDirectory(tmp, final_dir);
+  if (replacing) fs::remove_all(aside, ec);
+}
+
+// Cleans what a killed run left of clip `id`: its temporary folder, and a pair
+// moved aside for replacement (restored when the new one never landed).
+void RecoverClipFolders(const std::string& out, const std::string& id) {
+  std::error_code ec;
+  fs::remove_all(out + "/pairs/.tmp-" + id, ec);
+  const std::string aside = out + "/pairs/.replaced-" + id;
+  if (!fs::exists(aside, ec)) return;
+  if (fs::exists(out + "/pairs/" + id, ec)) {
+    fs::remove_all(aside, ec);
+  } else {
+    fs::rename(aside, out + "/pairs/" + id, ec);
+  }
+}
 
 std::string ShardSuffix(int index, int count) {
   return count == 1 ? ""
@@ -173,7 +260,7 @@ int RewriteLogs(const std::string& out) {
   if (fs::is_directory(out + "/pairs")) {
     for (const auto& e : fs::directory_iterator(out + "/pairs")) {
       const std::string name = e.path().filename().string();
-      if (e.is_directory() && name.rfind(".tmp-", 0) != 0 &&
+      if (e.is_directory() && name.rfind(".", 0) != 0 &&
           fs::exists(e.path() / "meta.json")) {
         ids.push_back(name);
       }
@@ -191,8 +278,12 @@ int RewriteLogs(const std::string& out) {
   std::vector<std::string> logs;
   for (const auto& e : fs::directory_iterator(out)) {
     const std::string name = e.path().filename().string();
+    std::error_code ec;
+    // Regular files only: a log that is a device or a pipe (a failures.jsonl
+    // pointing at /dev/full) is not read back.
     if (name.rfind("failures", 0) == 0 && name.size() > 6 &&
-        name.substr(name.size() - 6) == ".jsonl") {
+        name.substr(name.size() - 6) == ".jsonl" &&
+        fs::is_regular_file(e.path(), ec)) {
       logs.push_back(e.path().string());
     }
   }
@@ -275,22 +366,53 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     mine.resize(opt.max_clips);
   summary.clips_total = static_cast<int>(mine.size());
 
-  // Stale temporary folders of a killed run are removed (only this shard's own
-  // clips: other shards or MPI ranks may be writing theirs right now); finished
-  // pairs are skipped.
-  for (const auto& c : mine) {
-    std::error_code ec;
-    fs::remove_all(opt.out + "/pairs/.tmp-" + c, ec);
-  }
+  // One run per output folder (and shard): a second one says who holds it.
+  const std::string suffix = ShardSuffix(opt.shard_index, opt.shard_count);
+  const ExclusiveLock out_lock(opt.out + "/.lock" + suffix,
+                               opt.out + ": output folder");
+  // Stale temporary folders of a killed run are removed and half-replaced
+  // pairs restored (only this shard's own clips: other shards or MPI ranks may
+  // be writing theirs right now); finished pairs that verify are skipped.
+  for (const auto& c : mine) RecoverClipFolders(opt.out, c);
+  const std::string hash = StableHash64(opt.ContentOptionsJson());
   std::vector<const std::string*> pending;
+  std::string first_mismatch;
   for (const auto& c : mine) {
-    if (fs::exists(opt.out + "/pairs/" + c + "/meta.json")) {
-      ++summary.skipped_existing;
-    } else {
-      pending.push_back(&c);
+    std::string why;
+    switch (VerifyPair(opt.out + "/pairs/" + c, hash, &why)) {
+      case PairState::kMissing:
+        pending.push_back(&c);
+        break;
+      case PairState::kComplete:
+        ++summary.skipped_existing;
+        break;
+      case PairState::kOtherOptions:
+        if (first_mismatch.empty()) first_mismatch = c + " (" + why + ")";
+        if (opt.keep_mismatched) {
+          ++summary.kept_mismatched;
+        } else {
+          ++summary.rebuilt_mismatched;
+          pending.push_back(&c);
+        }
+        break;
+      case PairState::kBroken:
+        ++summary.rebuilt_broken;
+        if (!opt.quiet)
+          std::cerr << "build-dataset: " << c << ": " << why
+                    << ": rebuilding it\n";
+        pending.push_back(&c);
+        break;
     }
   }
-  const std::string suffix = ShardSuffix(opt.shard_index, opt.shard_count);
+  const int mismatched = summary.kept_mismatched + summary.rebuilt_mismatched;
+  if (mismatched > 0) {
+    std::cerr << "build-dataset: " << mismatched << " pair(s) in " << opt.out
+              << " were built with other content options (first: "
+              << first_mismatch << "; this run " << hash << "): "
+              << (opt.keep_mismatched ? "kept (--keep-mismatched)"
+                                      : "rebuilding them")
+              << "\n";
+  }
   JsonlAppender manifest(opt.out + "/manifest" + suffix + ".jsonl");
   JsonlAppender failures(opt.out + "/failures" + suffix + ".jsonl");
   ProgressReporter progress("build-dataset", pending.size(), 10.0, opt.quiet);
@@ -304,14 +426,15 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       const std::string& clip_id = *pending[k];
       const std::string tmp = opt.out + "/pairs/.tmp-" + clip_id;
       const std::string final_dir = opt.out + "/pairs/" + clip_id;
-      std::string stage = "setup", error;
+      std::string stage = "setup", error, error_log;
       try {
         fs::remove_all(tmp);
         fs::create_directories(tmp);
         const PairMeta meta = BuildPair(ctx, clip_id, tmp, &local_seconds);
         stage = "commit";
-        CommitDirectory(tmp, final_dir);
-        manifest.Append(ManifestEntryToJson(EntryFromMeta(meta)));
+        ReplaceDirectory(tmp, final_dir);
+        error_log =
+            AppendLine(&manifest, ManifestEntryToJson(EntryFromMeta(meta)));
       } catch (const StageError& e) {
         stage = e.stage;
         error = e.what();
@@ -326,10 +449,15 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
         fs::remove_all(tmp, ec);
         ++summary.failed;
         ++summary.failures_by_stage[stage];
-        failures.Append(FailureEntryToJson({clip_id, stage, error}));
+        error_log =
+            AppendLine(&failures, FailureEntryToJson({clip_id, stage, error}));
         if (!opt.quiet)
           std::cerr << "build-dataset: " << clip_id << " failed at " << stage
                     << ": " << error << "\n";
+      }
+      if (!error_log.empty()) {  // a run failure, reported; never an abort
+        ++summary.log_write_errors;
+        std::cerr << "build-dataset: " << error_log << "\n";
       }
       progress.Advance(1, clip_id);
     }

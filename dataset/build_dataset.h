@@ -96,6 +96,9 @@ struct BuildDatasetOptions {
   // MonST3R geometry: refine the poses by reprojection over static pixels
   // (paper eq. 3) before rendering; meta.json reports the RMS before/after.
   bool refine_poses = false;
+  // Keep pairs of OUT built with other content options (reported) instead of
+  // rebuilding them.
+  bool keep_mismatched = false;
   // Also write the pairs in another tool's format.
   PairExport export_format = PairExport::kNone;
   bool quiet = false;
@@ -111,7 +114,16 @@ struct BuildDatasetOptions {
 struct BuildDatasetSummary {
   int clips_total = 0;  // clips in this run's list (after --clips, shard, max)
   int built = 0;        // pairs built now
-  int skipped_existing = 0;  // pairs already present (resume)
+  int skipped_existing = 0;  // pairs already present and verified (resume)
+  // Pairs rebuilt because a listed file was missing or had another size.
+  int rebuilt_broken = 0;
+  // Pairs built with other content options (another options_hash): rebuilt,
+  // or kept with keep_mismatched.
+  int rebuilt_mismatched = 0;
+  int kept_mismatched = 0;
+  // Lines that could not be appended to manifest/failures logs (the run then
+  // fails; the logs are rebuilt from the pair folders at the end).
+  int log_write_errors = 0;
   int skipped_no_monst3r =
       0;  // clips without a MonST3R folder (geometry monst3r)
   int failed = 0;

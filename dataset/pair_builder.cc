@@ -5,9 +5,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
@@ -75,7 +75,9 @@ bool IsVehicle(const std::string& category) {
 }
 
 // PSNR (dB, data range 255) over the pixels where mask != 0; nullopt if none.
-std::optional<double> MaskedPsnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+std::optional<double> MaskedPsnr(const cv::Mat& a,
+                                 const cv::Mat& b,
+                                 const cv::Mat& mask) {
   double se = 0;
   int64_t n = 0;
   for (int y = 0; y < a.rows; ++y) {
@@ -105,11 +107,11 @@ ImageResizeSpec OutputSpec(const PinholeCamera& cam,
 // Static-region agreement with GT: rendered pixels outside every vehicle (box
 // grown 4 px).
 std::optional<double> StaticPsnr(const cv::Mat& cond,
-                  const cv::Mat& gt,
-                  const cv::Mat& render_mask,
-                  const BoxSequences& boxes,
-                  int frame,
-                  const BuildDatasetOptions& opt) {
+                                 const cv::Mat& gt,
+                                 const cv::Mat& render_mask,
+                                 const BoxSequences& boxes,
+                                 int frame,
+                                 const BuildDatasetOptions& opt) {
   cv::Mat mask;
   if (render_mask.size() == cond.size()) {
     mask = render_mask.clone();
@@ -164,8 +166,10 @@ ConditionScene BuildClipScene(const DriveClip& clip,
   in.clip = &clip;
   in.clip_images = &images;
   if (source->Traits().needs_path) {
-    GEODRIVE_CHECK_INPUT(!path.empty(), clip.id, ": no input folder for scene "
-                         "source ", name, " under ", opt.monst3r_root);
+    GEODRIVE_CHECK_INPUT(!path.empty(), clip.id,
+                         ": no input folder for scene "
+                         "source ",
+                         name, " under ", opt.monst3r_root);
     in.path = path;
   }
   SceneSourceOptions so;
@@ -354,6 +358,12 @@ void WritePairFolder(const std::string& dir,
   meta->files["preview"] = "preview.png";
   meta->files["boxes"] = "boxes.json";
   meta->files["meta"] = "meta.json";
+  for (const auto& [role, name] : meta->files) {
+    const std::string path = dir + "/" + name;
+    std::error_code ec;
+    if (name != "meta.json" && std::filesystem::is_regular_file(path, ec))
+      meta->file_sizes[name] = std::filesystem::file_size(path, ec);
+  }
   WriteFileAtomic(dir + "/meta.json", PairMetaToJson(*meta));
 }
 
@@ -383,7 +393,7 @@ int WriteUpstreamIndex(const std::string& out) {
   if (fs::is_directory(out + "/pairs")) {
     for (const auto& e : fs::directory_iterator(out + "/pairs")) {
       const std::string name = e.path().filename().string();
-      if (!e.is_directory() || name.rfind(".tmp-", 0) == 0 ||
+      if (!e.is_directory() || name.rfind(".", 0) == 0 ||
           !fs::exists(e.path() / "meta.json") ||
           !fs::is_directory(e.path() / "upstream"))
         continue;
@@ -408,8 +418,8 @@ int WriteUpstreamIndex(const std::string& out) {
         line += std::string(i ? ", \"" : "\"") + sample + "/render_" +
                 std::to_string(i) + ".png\"";
       }
-      line += "], \"scene_idx\": " + std::to_string(*m.upstream_scene_idx) +
-              "}";
+      line +=
+          "], \"scene_idx\": " + std::to_string(*m.upstream_scene_idx) + "}";
       samples.emplace_back(*m.upstream_scene_idx, line);
     }
   }

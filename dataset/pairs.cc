@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -34,12 +35,10 @@ Rigid3d PoseFromJson(const json& j, const std::string& what) {
   return Rigid3d::FromMatrix(m, 1e-5);
 }
 
+// A whole regular file (ReadFileText: size-capped, a device or a pipe is an
+// error, not an endless read).
 std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  GEODRIVE_CHECK_INPUT(in.good(), path, ": cannot open");
-  std::ostringstream os;
-  os << in.rdbuf();
-  return os.str();
+  return ReadFileText(path, uint64_t{1} << 30);
 }
 
 }  // namespace
@@ -97,6 +96,7 @@ std::string PairMetaToJson(const PairMeta& m) {
   q["psnr_static"] = psnr;
   j["quality"] = q;
   j["files"] = m.files;
+  if (!m.file_sizes.empty()) j["file_sizes"] = m.file_sizes;
   return j.dump(2) + "\n";
 }
 
@@ -169,6 +169,8 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     if (j.contains("upstream_scene_idx"))
       m.upstream_scene_idx = j.at("upstream_scene_idx").get<int>();
     m.files = j.at("files").get<std::map<std::string, std::string>>();
+    if (j.contains("file_sizes"))
+      m.file_sizes = j.at("file_sizes").get<std::map<std::string, uint64_t>>();
   } catch (const json::exception& e) {
     ThrowInputError(what, "missing or mistyped field (", e.what(), ")");
   }
@@ -254,8 +256,7 @@ ManifestEntry ManifestEntryFromJson(const std::string& line,
 }
 
 std::vector<ManifestEntry> ReadManifest(const std::string& path) {
-  std::ifstream in(path);
-  GEODRIVE_CHECK_INPUT(in.good(), path, ": cannot open");
+  std::istringstream in(ReadText(path));
   std::vector<ManifestEntry> out;
   std::string line;
   int n = 0;
@@ -273,8 +274,7 @@ std::string FailureEntryToJson(const FailureEntry& e) {
 }
 
 std::vector<FailureEntry> ReadFailures(const std::string& path) {
-  std::ifstream in(path);
-  GEODRIVE_CHECK_INPUT(in.good(), path, ": cannot open");
+  std::istringstream in(ReadText(path));
   std::vector<FailureEntry> out;
   std::string line;
   int n = 0;

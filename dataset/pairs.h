@@ -73,6 +73,9 @@ struct PairMeta {
   PairQuality quality;
   std::map<std::string, std::string>
       files;  // role -> file name inside the pair folder
+  // Size in bytes of each regular file of `files` (meta.json aside): a resume
+  // rebuilds a pair whose files do not match.
+  std::map<std::string, uint64_t> file_sizes;
 };
 
 // Serialises to / parses from the meta.json text. Parse errors throw InputError

@@ -5,6 +5,7 @@ that later issues added or changed on purpose:
   frame_source, frame_interval_s                   added by issue 18 (clip frame source)
   quality.reprojection_rms_px[_before|_after]      issue 18: the -1 "not computed" sentinel is gone
   quality.scale_inlier_fraction when -1 / absent   issue 18: same sentinel
+  file_sizes                                       added by issue 19 (verified resume)
 Everything else in meta.json (poses, intrinsics, scale, coverage, PSNR, options, files) must be
 equal. Exit 0 when the trees agree, 1 listing the differences."""
 import filecmp
@@ -16,6 +17,7 @@ import sys
 def normalise(meta):
     meta.pop("frame_source", None)
     meta.pop("frame_interval_s", None)
+    meta.pop("file_sizes", None)
     q = meta.get("quality", {})
     for k in ("reprojection_rms_px", "reprojection_rms_px_before", "reprojection_rms_px_after"):
         q.pop(k, None)
@@ -27,13 +29,15 @@ def normalise(meta):
 def main():
     a, b = sys.argv[1], sys.argv[2]
     diffs = []
-    files_a = {os.path.relpath(os.path.join(d, f), a) for d, _, fs in os.walk(a) for f in fs}
-    files_b = {os.path.relpath(os.path.join(d, f), b) for d, _, fs in os.walk(b) for f in fs}
+    def listing(root):  # the lock file (issue 19) holds a pid: not an output
+        return {os.path.relpath(os.path.join(d, f), root) for d, _, fs in os.walk(root)
+                for f in fs if not f.startswith(".lock")}
+    files_a, files_b = listing(a), listing(b)
     for rel in sorted(files_a ^ files_b):
         diffs.append(f"only in one tree: {rel}")
     for rel in sorted(files_a & files_b):
         if os.path.basename(rel) == "report.html":
-            continue
+            continue  # run timings
         pa, pb = os.path.join(a, rel), os.path.join(b, rel)
         if os.path.basename(rel) == "meta.json":
             if normalise(json.load(open(pa))) != normalise(json.load(open(pb))):

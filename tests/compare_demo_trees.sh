@@ -55,12 +55,12 @@ run "$old_bin" "$work/old"
 run "$new_bin" "$work/new"
 status=0
 if [[ $exact -eq 1 ]]; then
-  diff -r -q -x report.html "$work/old/pairs" "$work/new/pairs" || status=1
+  diff -r -q -x report.html -x '.lock*' "$work/old/pairs" "$work/new/pairs" || status=1
 else
   /usr/bin/python3 tests/compare_demo_meta.py "$work/old/pairs" "$work/new/pairs" || status=1
 fi
 diff -r -q "$work/old/synth" "$work/new/synth" || status=1
-files=$(find "$work/new/pairs" "$work/new/synth" -type f ! -name report.html | wc -l)
+files=$(find "$work/new/pairs" "$work/new/synth" -type f ! -name report.html ! -name '.lock*' | wc -l)
 pairs=$(wc -l < "$work/new/pairs/manifest.jsonl")
 if [[ $status -eq 0 ]]; then
   echo "identical$([[ $exact -eq 1 ]] && echo ' (byte-exact)'): $pairs pairs, $files files" \

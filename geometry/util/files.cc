@@ -1,6 +1,7 @@
 #include "geometry/util/files.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -181,6 +182,34 @@ void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir) {
                        final_dir, ": rename from ", tmp_dir, " failed (",
                        std::strerror(errno), ")");
   FsyncPath(fs::path(final_dir).parent_path().string(), true);
+}
+
+ExclusiveLock::ExclusiveLock(const std::string& path, const std::string& what) {
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  GEODRIVE_CHECK_INPUT(fd_ >= 0, path, ": cannot create lock file (",
+                       std::strerror(errno), ")");
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    char buf[32] = {0};
+    const ssize_t n = ::pread(fd_, buf, sizeof(buf) - 1, 0);
+    ::close(fd_);
+    fd_ = -1;
+    std::string holder = n > 0 ? std::string(buf, static_cast<size_t>(n)) : "";
+    while (!holder.empty() && (holder.back() == '\n' || holder.back() == ' '))
+      holder.pop_back();
+    ThrowInputError(what, "another process",
+                    holder.empty() ? std::string() : " (pid " + holder + ")",
+                    " is writing it (lock ", path,
+                    "); wait for it to finish or use another folder");
+  }
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  if (::ftruncate(fd_, 0) == 0) {
+    const ssize_t n = ::pwrite(fd_, pid.data(), pid.size(), 0);
+    (void)n;  // the pid is informative; the lock itself is the flock
+  }
+}
+
+ExclusiveLock::~ExclusiveLock() {
+  if (fd_ >= 0) ::close(fd_);  // releases the flock
 }
 
 JsonlAppender::JsonlAppender(const std::string& path) : path_(path) {

@@ -53,6 +53,22 @@ void CommitTemporaryFile(const std::string& tmp, const std::string& path);
 // already exists or the rename fails.
 void CommitDirectory(const std::string& tmp_dir, const std::string& final_dir);
 
+// An exclusive advisory lock (flock) on `path`, held while the object lives
+// and released by the kernel when the process dies (kill -9 included). The
+// file holds the holder's pid. Throws InputError naming the holder when
+// another process holds it.
+class ExclusiveLock {
+ public:
+  // `what` names the thing locked in the error ("output folder OUT").
+  ExclusiveLock(const std::string& path, const std::string& what);
+  ~ExclusiveLock();
+  ExclusiveLock(const ExclusiveLock&) = delete;
+  ExclusiveLock& operator=(const ExclusiveLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 // Appends lines to a JSON-lines file; each Append writes one whole line,
 // flushes and fsyncs (thread-safe within a process).
 class JsonlAppender {

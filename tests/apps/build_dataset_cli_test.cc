@@ -31,7 +31,8 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(out)) {
     const std::string rel = fs::relative(e.path(), out).string();
-    if (!e.is_regular_file() || rel == "report.html" || rel == ".complete")
+    if (!e.is_regular_file() || rel == "report.html" || rel == ".complete" ||
+        rel.rfind(".lock", 0) == 0)
       continue;
     // Shard logs are merged into manifest.jsonl / failures.jsonl; compare
     // those.
@@ -251,20 +252,21 @@ TEST(BuildDatasetCli, RoundTripClipsUpstreamLayoutAndExport) {
     EXPECT_TRUE(fs::is_symlink(base + "/clips/" + id + "/images/00024.jpg"));
     char sample[32];
     std::snprintf(sample, sizeof(sample), "sample_%06d", index[id]);
-    const fs::path dst = fs::path(base) / "upstream" / sample / "reconstruction";
+    const fs::path dst =
+        fs::path(base) / "upstream" / sample / "reconstruction";
     fs::create_directories(dst.parent_path());
     fs::copy(e.path(), dst, fs::copy_options::recursive);
     ++moved;
   }
   ASSERT_EQ(moved, 3);
   const std::string out = base + "/pairs";
-  ASSERT_EQ(RunCommand(GeodriveBinary() + " build-dataset --dataroot " +
-                           World() + " --monst3r " + base + "/upstream" +
-                           " --monst3r-map " + base + "/clips/clips.jsonl" +
-                           " --export geodrive-upstream --out " + out +
-                           " --quiet",
-                       &log),
-            0)
+  ASSERT_EQ(
+      RunCommand(GeodriveBinary() + " build-dataset --dataroot " + World() +
+                     " --monst3r " + base + "/upstream" + " --monst3r-map " +
+                     base + "/clips/clips.jsonl" +
+                     " --export geodrive-upstream --out " + out + " --quiet",
+                 &log),
+      0)
       << log;
   // Same condition videos as from <clip_id>/ folders (the export changes the
   // options hash, not the renders).
@@ -282,6 +284,42 @@ TEST(BuildDatasetCli, RoundTripClipsUpstreamLayoutAndExport) {
             0)
       << log;
   std::printf("%s", log.c_str());
+}
+
+// A log line that cannot be written fails the run with a message; it does
+// not abort it (failures.jsonl on a full disk: /dev/full).
+TEST(BuildDatasetCli, FailuresLogThatCannotBeWrittenFailsTheRunCleanly) {
+  const std::string root = test::MakeTempDir("cli_build_full_world");
+  fs::copy(World(), root, fs::copy_options::recursive);
+  fs::remove(root + "/monst3r/scene-0001_0024/pred_traj.txt");
+  const std::string out = test::MakeTempDir("cli_build_full_out");
+  fs::create_symlink("/dev/full", out + "/failures.jsonl");
+  std::string log;
+  const int rc = RunCommand(GeodriveBinary() + " build-dataset --dataroot " +
+                                root + " --monst3r " + root +
+                                "/monst3r --out " + out + " --quiet",
+                            &log);
+  EXPECT_EQ(rc, 3) << log;
+  EXPECT_NE(log.find("failures.jsonl: append failed"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("log write errors 1"), std::string::npos) << log;
+  const std::string manifest = ReadAll(out + "/manifest.jsonl");
+  EXPECT_EQ(std::count(manifest.begin(), manifest.end(), '\n'), 2) << manifest;
+}
+
+// No command writes over its own inputs.
+TEST(RefinePosesCli, RefusesToWriteIntoItsInputFolder) {
+  const std::string dir = test::MakeTempDir("cli_refine_inplace");
+  fs::copy(World() + "/monst3r/scene-0001_0000", dir,
+           fs::copy_options::recursive);
+  const std::string before = ReadAll(dir + "/pred_traj.txt");
+  std::string log;
+  const int rc = RunCommand(GeodriveBinary() + " refine-poses --monst3r " +
+                                dir + " --out " + dir + "/pred_traj.txt",
+                            &log);
+  EXPECT_EQ(rc, 2) << log;
+  EXPECT_NE(log.find("is inside the input folder"), std::string::npos) << log;
+  EXPECT_EQ(ReadAll(dir + "/pred_traj.txt"), before);
 }
 
 }  // namespace

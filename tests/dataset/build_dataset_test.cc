@@ -69,7 +69,8 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
   for (const auto& e : fs::recursive_directory_iterator(out)) {
     if (!e.is_regular_file()) continue;
     const std::string rel = fs::relative(e.path(), out).string();
-    if (rel == "report.html" || rel == ".complete")
+    if (rel == "report.html" || rel == ".complete" ||
+        rel.rfind(".lock", 0) == 0)
       continue;  // timings; fixture marker
     files[rel] = ReadAll(e.path().string());
   }
@@ -354,6 +355,63 @@ TEST(BuildDataset, RefinePosesReportsReprojectionRmsBeforeAndAfter) {
   EXPECT_FALSE(p.quality.reprojection_rms_px_before.has_value());
   EXPECT_EQ(ReadAll(plain.out + "/pairs/" + id + "/meta.json")
                 .find("reprojection_rms_px"),
+            std::string::npos);
+}
+
+// The job's contract on resume (issue 19): one run per output folder; a pair
+// counts as finished only when its files verify and its options are this
+// run's.
+TEST(BuildDataset, SecondRunOnTheSameOutIsRefused) {
+  BuildDatasetOptions o = Options(test::MakeTempDir("build_locked"));
+  o.clips = {"scene-0001_0024"};
+  fs::create_directories(o.out);
+  const ExclusiveLock other(o.out + "/.lock", "test");  // another run
+  try {
+    BuildDataset(o);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("another process (pid "),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(o.out + "/pairs/scene-0001_0024"));
+}
+
+TEST(BuildDataset, ResumeRebuildsPairsWithMissingOrTruncatedFiles) {
+  BuildDatasetOptions o = Options(test::MakeTempDir("build_verify"));
+  o.clips = {"scene-0001_0000", "scene-0001_0024"};
+  ASSERT_EQ(BuildDataset(o).built, 2);
+  const auto reference = OutputFiles(o.out);
+  fs::remove(o.out + "/pairs/scene-0001_0000/gt.mp4");
+  fs::resize_file(o.out + "/pairs/scene-0001_0024/cond.mp4", 100);
+  const BuildDatasetSummary s = BuildDataset(o);
+  EXPECT_EQ(s.rebuilt_broken, 2);
+  EXPECT_EQ(s.built, 2);
+  EXPECT_EQ(s.skipped_existing, 0);
+  EXPECT_TRUE(OutputFiles(o.out) == reference);
+  EXPECT_EQ(BuildDataset(o).skipped_existing, 2);  // now they verify
+}
+
+TEST(BuildDataset, PairsOfOtherContentOptionsAreRebuiltOrKept) {
+  BuildDatasetOptions o = Options(test::MakeTempDir("build_mismatch"));
+  o.clips = {"scene-0001_0024"};
+  o.edit_mode = PairEditMode::kNone;
+  ASSERT_EQ(BuildDataset(o).built, 1);
+  const std::string meta = o.out + "/pairs/scene-0001_0024";
+  o.width = 360;
+  o.height = 240;
+  const BuildDatasetSummary rebuilt = BuildDataset(o);
+  EXPECT_EQ(rebuilt.rebuilt_mismatched, 1);
+  EXPECT_EQ(ReadPairMeta(meta).intrinsics.width, 360);
+  BuildDatasetOptions keep = o;
+  keep.width = 720;
+  keep.height = 480;
+  keep.keep_mismatched = true;
+  const BuildDatasetSummary kept = BuildDataset(keep);
+  EXPECT_EQ(kept.kept_mismatched, 1);
+  EXPECT_EQ(kept.built, 0);
+  EXPECT_EQ(ReadPairMeta(meta).intrinsics.width, 360);
+  EXPECT_NE(kept.BriefReport().find("kept (other options) 1"),
             std::string::npos);
 }
 
