@@ -15,6 +15,7 @@
 // [--insert ID:FILE] [--move ID:FILE] (render/dynamic_edit.h); the applied
 // edits and notes go to render.json "dynamic_edit".
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -23,6 +24,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <sstream>
 
 #include "apps/cli/cli.h"
@@ -47,9 +49,10 @@ struct RenderArgs {
   std::string cloud, image, depth, intrinsics, monst3r, trajectory, out;
   std::string trajectory_format = "auto";
   std::string mode, preset = "paper", size;
-  double radius = -1;  // < 0: preset default
-  int points_per_pixel = 0;
-  double near = -1, far = -1;
+  // Overrides of the preset's values (absent: the preset's).
+  std::optional<double> radius;
+  std::optional<int> points_per_pixel;
+  std::optional<double> near, far;
   bool hole_fill = false;
   TrajectoryEditOptions edits;
   bool reverse = false;
@@ -73,16 +76,16 @@ RenderOptions RenderOptionsFromArgs(const RenderArgs& a, RenderPreset preset) {
   if (!a.mode.empty()) options.mode = ParseRenderMode(a.mode);
   if (!a.size.empty())
     ParseSizeHxW(a.size, "--size", &options.height, &options.width);
-  if (a.radius >= 0) {
+  if (a.radius) {
     if (options.mode == RenderMode::kSoft) {
-      options.radius_ndc = a.radius;
+      options.radius_ndc = *a.radius;
     } else {
-      options.radius_px = a.radius;
+      options.radius_px = *a.radius;
     }
   }
-  if (a.points_per_pixel > 0) options.points_per_pixel = a.points_per_pixel;
-  if (a.near >= 0) options.near = a.near;
-  if (a.far >= 0) options.far = a.far;
+  if (a.points_per_pixel) options.points_per_pixel = *a.points_per_pixel;
+  if (a.near) options.near = *a.near;
+  if (a.far) options.far = *a.far;
   options.hole_fill = a.hole_fill;
   options.num_threads = a.threads;
   if (options.mode == RenderMode::kSoft) options.output_float_rgb = true;
@@ -393,13 +396,49 @@ CommandRunner SetupRender(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--size", a->size,
                  "Render size HxW, e.g. 480x720 (default: the preset's)");
-  app.add_option("--radius", a->radius,
-                 "Splat radius: pixels in zbuffer mode (0 = one pixel), NDC "
-                 "units in soft mode");
-  app.add_option("--points-per-pixel", a->points_per_pixel,
-                 "Soft mode K (1..32)");
-  app.add_option("--near", a->near, "Near depth (trajectory units)");
-  app.add_option("--far", a->far, "Far depth (trajectory units)");
+  // Values are checked where parsed: the whole string, finite, in range (no
+  // silent fallback to the preset's value).
+  const CLI::Validator finite_non_negative(
+      [](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v) || v < 0)
+          return "must be a finite number >= 0, got '" + text + "'";
+        return "";
+      },
+      "FINITE >= 0");
+  const CLI::Validator finite_positive(
+      [](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v) || v <= 0)
+          return "must be a finite number > 0, got '" + text + "'";
+        return "";
+      },
+      "FINITE > 0");
+  app.add_option_function<double>(
+         "--radius", [a](double v) { a->radius = v; },
+         "Splat radius: pixels in zbuffer mode (0 = one pixel), NDC units in "
+         "soft mode (default: the preset's)")
+      ->check(finite_non_negative);
+  app.add_option_function<int>(
+         "--points-per-pixel", [a](int v) { a->points_per_pixel = v; },
+         "Soft mode K (1..32; default: the preset's)")
+      ->check(CLI::Range(1, 32));
+  app.add_option_function<double>(
+         "--near", [a](double v) { a->near = v; },
+         "Near depth (trajectory units, > 0; default: the preset's)")
+      ->check(finite_positive);
+  const CLI::Validator positive_or_inf(
+      [](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v) || std::isnan(v) || v <= 0)
+          return "must be a number > 0 (or inf), got '" + text + "'";
+        return "";
+      },
+      "NUMBER > 0");
+  app.add_option_function<double>(
+         "--far", [a](double v) { a->far = v; },
+         "Far depth (trajectory units, > 0 or inf; default: the preset's)")
+      ->check(positive_or_inf);
   app.add_flag("--hole-fill", a->hole_fill,
                "zbuffer: fill small holes from the nearest valid neighbour "
                "(off by default)");

@@ -88,6 +88,19 @@ void BuildDatasetOptions::Check() const {
       "build-dataset: depth range must satisfy 0 <= min < max");
   GEODRIVE_CHECK_INPUT(splat_radius_px >= 0 && splat_radius_px <= 16,
                        "build-dataset: --splat-radius must be in [0, 16]");
+  // Encoder options fail the run at start, not every clip.
+  GEODRIVE_CHECK_INPUT(video_crf >= 0 && video_crf <= 51,
+                       "build-dataset: --crf must be in 0..51 (x264), got ",
+                       video_crf);
+  static const char* const kX264Presets[] = {
+      "ultrafast", "superfast", "veryfast", "faster",   "fast",
+      "medium",    "slow",      "slower",   "veryslow", "placebo"};
+  GEODRIVE_CHECK_INPUT(
+      std::find(std::begin(kX264Presets), std::end(kX264Presets),
+                video_preset) != std::end(kX264Presets),
+      "build-dataset: --x264-preset '", video_preset,
+      "' is not an x264 preset (ultrafast superfast veryfast faster fast "
+      "medium slow slower veryslow placebo)");
 }
 
 std::string BuildDatasetOptions::ContentOptionsJson() const {

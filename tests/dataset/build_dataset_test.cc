@@ -295,6 +295,14 @@ TEST(BuildDataset, GeodriveCompatPresetBuilds) {
 
 TEST(BuildDataset, BadOptionsAreInputErrors) {
   BuildDatasetOptions o = Options(test::MakeTempDir("build_bad_opts"));
+  // Encoder options fail at start (issue 19), before any clip is built.
+  BuildDatasetOptions crf = o;
+  crf.video_crf = -1;
+  EXPECT_THROW(BuildDataset(crf), InputError);
+  BuildDatasetOptions preset = o;
+  preset.video_preset = "turbo";
+  EXPECT_THROW(BuildDataset(preset), InputError);
+  EXPECT_FALSE(fs::exists(o.out + "/pairs"));
   o.threads = 0;
   EXPECT_THROW(BuildDataset(o), InputError);
   o = Options(test::MakeTempDir("build_bad_opts2"));

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -138,6 +139,32 @@ TEST(RenderCommand, BadInputExitsTwoWithOneLine) {
                                  in.trajectory + " --out " + dir + "/out3",
                              &log),
             2)
+      << log;
+}
+
+// Option values are checked where parsed (issue 19): no silent fallback to
+// the preset's value for a negative, NaN, trailing-text or out-of-range one.
+TEST(RenderCommand, InvalidOptionValuesExitTwoNamingTheOption) {
+  const std::string dir = test::MakeTempDir("render_cmd_values");
+  const Inputs in = WriteInputs(dir);
+  const std::string base = test::GeodriveBinary() + " render --image " +
+                           in.image + " --depth " + in.depth +
+                           " --intrinsics " + in.intrinsics + " --trajectory " +
+                           in.trajectory + " --out " + dir + "/out";
+  for (const std::string bad : {"--radius -1", "--radius nan", "--radius 1.5px",
+                                "--near -1", "--near 0", "--points-per-pixel 0",
+                                "--points-per-pixel 99", "--far -3"}) {
+    std::string log;
+    EXPECT_EQ(test::RunCommand(base + " " + bad, &log), 2)
+        << bad << ": " << log;
+    const std::string option = bad.substr(0, bad.find(' '));
+    EXPECT_NE(log.find(option), std::string::npos) << bad << ": " << log;
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/out/render.json")) << bad;
+  }
+  std::string log;
+  EXPECT_EQ(test::RunCommand(base + " --radius 0 --far inf --no-video", &log),
+            0)
       << log;
 }
 
