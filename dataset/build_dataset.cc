@@ -313,6 +313,88 @@ int RewriteLogs(const std::string& out) {
   return static_cast<int>(ids.size());
 }
 
+// The clips of `clips` that --clips names; an unknown id is an InputError.
+std::vector<std::string> RequestedClips(std::vector<std::string> clips,
+                                        const BuildDatasetOptions& opt) {
+  const std::set<std::string> wanted(opt.clips.begin(), opt.clips.end());
+  std::set<std::string> found;
+  std::vector<std::string> kept;
+  for (auto& c : clips) {
+    if (wanted.count(c)) found.insert(c), kept.push_back(std::move(c));
+  }
+  for (const auto& id : wanted) {
+    GEODRIVE_CHECK_INPUT(
+        found.count(id), "build-dataset: clip '", id,
+        "' is not a clip of this dataset (see `geodrive nuscenes-info`)");
+  }
+  return kept;
+}
+
+// This shard's share of `clips` (every shard_count-th), at most max_clips.
+std::vector<std::string> ShardClips(const std::vector<std::string>& clips,
+                                    const BuildDatasetOptions& opt) {
+  std::vector<std::string> mine;
+  for (size_t i = 0; i < clips.size(); ++i) {
+    if (static_cast<int>(i % opt.shard_count) == opt.shard_index)
+      mine.push_back(clips[i]);
+  }
+  if (opt.max_clips > 0 && static_cast<int>(mine.size()) > opt.max_clips)
+    mine.resize(opt.max_clips);
+  return mine;
+}
+
+// The clips of `mine` to build now. Stale temporary folders of a killed run
+// are removed and half-replaced pairs restored (only this shard's own clips:
+// other shards or MPI ranks may be writing theirs right now); finished pairs
+// that verify are skipped, broken ones and those of other content options
+// rebuilt (or kept with keep_mismatched), and the run says so.
+std::vector<const std::string*> PendingClips(
+    const std::vector<std::string>& mine,
+    const BuildDatasetOptions& opt,
+    BuildDatasetSummary* summary) {
+  for (const auto& c : mine) RecoverClipFolders(opt.out, c);
+  const std::string hash = StableHash64(opt.ContentOptionsJson());
+  std::vector<const std::string*> pending;
+  std::string first_mismatch;
+  for (const auto& c : mine) {
+    std::string why;
+    switch (VerifyPair(opt.out + "/pairs/" + c, hash, &why)) {
+      case PairState::kMissing:
+        pending.push_back(&c);
+        break;
+      case PairState::kComplete:
+        ++summary->skipped_existing;
+        break;
+      case PairState::kOtherOptions:
+        if (first_mismatch.empty()) first_mismatch = c + " (" + why + ")";
+        if (opt.keep_mismatched) {
+          ++summary->kept_mismatched;
+        } else {
+          ++summary->rebuilt_mismatched;
+          pending.push_back(&c);
+        }
+        break;
+      case PairState::kBroken:
+        ++summary->rebuilt_broken;
+        if (!opt.quiet)
+          std::cerr << "build-dataset: " << c << ": " << why
+                    << ": rebuilding it\n";
+        pending.push_back(&c);
+        break;
+    }
+  }
+  const int mismatched = summary->kept_mismatched + summary->rebuilt_mismatched;
+  if (mismatched > 0) {
+    std::cerr << "build-dataset: " << mismatched << " pair(s) in " << opt.out
+              << " were built with other content options (first: "
+              << first_mismatch << "; this run " << hash << "): "
+              << (opt.keep_mismatched ? "kept (--keep-mismatched)"
+                                      : "rebuilding them")
+              << "\n";
+  }
+  return pending;
+}
+
 }  // namespace
 
 BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
@@ -330,20 +412,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();
-  if (!opt.clips.empty()) {
-    const std::set<std::string> wanted(opt.clips.begin(), opt.clips.end());
-    std::set<std::string> found;
-    std::vector<std::string> kept;
-    for (auto& c : clips) {
-      if (wanted.count(c)) found.insert(c), kept.push_back(std::move(c));
-    }
-    for (const auto& id : wanted) {
-      GEODRIVE_CHECK_INPUT(
-          found.count(id), "build-dataset: clip '", id,
-          "' is not a clip of this dataset (see `geodrive nuscenes-info`)");
-    }
-    clips = std::move(kept);
-  }
+  if (!opt.clips.empty()) clips = RequestedClips(std::move(clips), opt);
   std::map<std::string, int> clip_index;
   for (size_t i = 0; i < dataset->ClipIds().size(); ++i)
     clip_index[dataset->ClipIds()[i]] = static_cast<int>(i);
@@ -352,10 +421,11 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   ctx.options = &opt;
   ctx.clip_index = &clip_index;
   std::unique_ptr<SceneFolders> folders;
-  if (CreateSceneSource(opt.SceneSourceName())->Traits().needs_path) {
-    folders = std::make_unique<SceneFolders>(
-        opt.monst3r_root, opt.monst3r_map,
-        opt.SceneSourceName() == "monst3r" ? "pred_traj.txt" : "");
+  const SceneSourceTraits traits =
+      CreateSceneSource(opt.SceneSourceName())->Traits();
+  if (traits.needs_path) {
+    folders = std::make_unique<SceneFolders>(opt.monst3r_root, opt.monst3r_map,
+                                             traits.folder_marker);
     ctx.folders = folders.get();
     std::vector<std::string> kept;
     for (auto& c : clips) {
@@ -370,62 +440,15 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     }
     clips = std::move(kept);
   }
-  std::vector<std::string> mine;
-  for (size_t i = 0; i < clips.size(); ++i) {
-    if (static_cast<int>(i % opt.shard_count) == opt.shard_index)
-      mine.push_back(clips[i]);
-  }
-  if (opt.max_clips > 0 && static_cast<int>(mine.size()) > opt.max_clips)
-    mine.resize(opt.max_clips);
+  const std::vector<std::string> mine = ShardClips(clips, opt);
   summary.clips_total = static_cast<int>(mine.size());
 
   // One run per output folder (and shard): a second one says who holds it.
   const std::string suffix = ShardSuffix(opt.shard_index, opt.shard_count);
   const ExclusiveLock out_lock(opt.out + "/.lock" + suffix,
                                opt.out + ": output folder");
-  // Stale temporary folders of a killed run are removed and half-replaced
-  // pairs restored (only this shard's own clips: other shards or MPI ranks may
-  // be writing theirs right now); finished pairs that verify are skipped.
-  for (const auto& c : mine) RecoverClipFolders(opt.out, c);
-  const std::string hash = StableHash64(opt.ContentOptionsJson());
-  std::vector<const std::string*> pending;
-  std::string first_mismatch;
-  for (const auto& c : mine) {
-    std::string why;
-    switch (VerifyPair(opt.out + "/pairs/" + c, hash, &why)) {
-      case PairState::kMissing:
-        pending.push_back(&c);
-        break;
-      case PairState::kComplete:
-        ++summary.skipped_existing;
-        break;
-      case PairState::kOtherOptions:
-        if (first_mismatch.empty()) first_mismatch = c + " (" + why + ")";
-        if (opt.keep_mismatched) {
-          ++summary.kept_mismatched;
-        } else {
-          ++summary.rebuilt_mismatched;
-          pending.push_back(&c);
-        }
-        break;
-      case PairState::kBroken:
-        ++summary.rebuilt_broken;
-        if (!opt.quiet)
-          std::cerr << "build-dataset: " << c << ": " << why
-                    << ": rebuilding it\n";
-        pending.push_back(&c);
-        break;
-    }
-  }
-  const int mismatched = summary.kept_mismatched + summary.rebuilt_mismatched;
-  if (mismatched > 0) {
-    std::cerr << "build-dataset: " << mismatched << " pair(s) in " << opt.out
-              << " were built with other content options (first: "
-              << first_mismatch << "; this run " << hash << "): "
-              << (opt.keep_mismatched ? "kept (--keep-mismatched)"
-                                      : "rebuilding them")
-              << "\n";
-  }
+  const std::vector<const std::string*> pending =
+      PendingClips(mine, opt, &summary);
   JsonlAppender manifest(opt.out + "/manifest" + suffix + ".jsonl");
   JsonlAppender failures(opt.out + "/failures" + suffix + ".jsonl");
   ProgressReporter progress("build-dataset", pending.size(), 10.0, opt.quiet);

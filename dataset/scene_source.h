@@ -151,6 +151,9 @@ struct SceneSourceTraits {
   bool needs_clip = false;
   // One line for --help: what the source reads.
   std::string help;
+  // A file that marks the source's folder (per-clip folder layouts,
+  // dataset/scene_folders.h); empty = none.
+  std::string folder_marker;
 };
 
 class SceneSource {

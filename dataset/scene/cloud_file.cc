@@ -16,7 +16,8 @@ class CloudFileSceneSource : public SceneSource {
   SceneSourceTraits Traits() const override {
     return {true, false,
             "a point cloud file (.ply/.pcd/.pcd.bin/.bin) in the trajectory's "
-            "world frame"};
+            "world frame",
+            /*folder_marker=*/""};
   }
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions&) const override {

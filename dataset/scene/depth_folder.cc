@@ -72,7 +72,8 @@ class DepthFolderSceneSource : public SceneSource {
   SceneSourceTraits Traits() const override {
     return {true, false,
             "a folder with depth/000000.npy and cameras.json (per-frame K, "
-            "world_from_cam)"};
+            "world_from_cam)",
+            "cameras.json"};
   }
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {

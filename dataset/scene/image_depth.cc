@@ -16,7 +16,8 @@ class ImageDepthSceneSource : public SceneSource {
   SceneSourceTraits Traits() const override {
     return {true, false,
             "an image (SceneInputs::image or image_path), its z-depth .npy "
-            "(path) and a K file (intrinsics_path)"};
+            "(path) and a K file (intrinsics_path)",
+            /*folder_marker=*/""};
   }
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions&) const override {

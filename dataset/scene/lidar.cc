@@ -113,7 +113,8 @@ class LidarSceneSource : public SceneSource {
   SceneSourceTraits Traits() const override {
     return {false, true,
             "a dataset clip with LiDAR: sweeps around frame 0, coloured from "
-            "the clip's images"};
+            "the clip's images",
+            /*folder_marker=*/""};
   }
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {

@@ -187,7 +187,8 @@ class Monst3rSceneSource : public SceneSource {
   SceneSourceTraits Traits() const override {
     return {true, false,
             "a MonST3R output folder (pred_traj.txt, pred_intrinsics.txt, "
-            "frame_NNNN.npy, conf_N.npy, masks)"};
+            "frame_NNNN.npy, conf_N.npy, masks)",
+            "pred_traj.txt"};
   }
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {
