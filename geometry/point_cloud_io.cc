@@ -1,43 +1,864 @@
+// Point cloud files, read and written without PCL io.
+//
+// Why hand-written: PCL's pcl_io drags in VTK and GDAL (about 300 shared
+// libraries, 0.25 s of start-up in every process that links it). Its PLY
+// reader fills missing ASCII points with zeros, drops NaN points silently and
+// allocates by the declared vertex count before checking the file (a PLY that
+// declares 50 M vertices in 80 KB takes 880 MB), and PCL 1.13's PCDReader
+// crashes on some malformed headers. No packaged library reads PLY and PCD
+// hardened, so these readers are ours: the whole file is read once, every
+// declared size is checked against the bytes that follow the header before
+// anything is allocated, binary values are copied with memcpy per property
+// (in blocks of points, field by field), ASCII values are parsed with
+// std::from_chars, and LZF (PCD binary_compressed) comes from Debian's liblzf.
+// Policies (limits, NaN, attribute names): point_cloud_io.h.
+
 #include "geometry/point_cloud_io.h"
 
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/ply_io.h>
+#include <fcntl.h>
+#include <lzf.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
+#include <cerrno>
+#include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
-#include <filesystem>
-#include <sstream>
+#include <limits>
+#include <memory>
+#include <new>
+#include <string_view>
+#include <type_traits>
+#include <vector>
 
 #include "geometry/util/files.h"
-#include "geometry/internal/pcl_adapter.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
 
-// Reads a file of `floats_per_point` little-endian float32 values per point.
-std::vector<float> ReadFloatRecords(const std::string& path,
-                                    size_t floats_per_point,
-                                    const char* layout) {
-  const std::vector<uint8_t> bytes = ReadFileBytes(path);
-  const size_t record = floats_per_point * sizeof(float);
-  if (bytes.size() % record != 0) {
-    ThrowInputError(path, "size ", bytes.size(), " bytes is not a multiple of ",
-                    record, " (", layout, ")");
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
+              "the binary readers assume a little-endian host");
+static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE floats");
+static_assert(sizeof(Eigen::Vector3f) == 12 && sizeof(Color3u8) == 3,
+              "positions and colours are packed arrays");
+
+// ---------------------------------------------------------------------------
+// Whole files.
+
+struct FileBuffer {
+  std::unique_ptr<char[]> bytes;
+  size_t size = 0;
+  const char* begin() const { return bytes.get(); }
+  const char* end() const { return bytes.get() + size; }
+};
+
+// Reads a whole regular file into an uninitialised buffer (no zero fill).
+FileBuffer ReadWholeFile(const std::string& path) {
+  const uint64_t size = FileSizeOrThrow(path);
+  FileBuffer file;
+  try {
+    file.bytes.reset(new char[size + 1]);
+  } catch (const std::bad_alloc&) {
+    ThrowInputError(path, "file of ", size, " bytes does not fit in memory");
   }
-  std::vector<float> values(bytes.size() / sizeof(float));
-  if (!bytes.empty()) std::memcpy(values.data(), bytes.data(), bytes.size());
-  for (size_t i = 0; i < values.size(); i += floats_per_point) {
-    if (!std::isfinite(values[i]) || !std::isfinite(values[i + 1]) ||
-        !std::isfinite(values[i + 2])) {
-      ThrowInputError(path, "point ", i / floats_per_point,
-                      " has a non-finite coordinate");
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) ThrowOpenError(path, errno);
+  size_t got = 0;
+  while (got < size) {
+    const ssize_t r = ::read(fd, file.bytes.get() + got, size - got);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) {
+      const int error = errno;
+      ::close(fd);
+      if (r < 0)
+        ThrowInputError(path, "cannot read (", std::strerror(error), ")");
+      ThrowInputError(path, "file shrank while it was read");
+    }
+    got += static_cast<size_t>(r);
+  }
+  ::close(fd);
+  file.size = size;
+  return file;
+}
+
+// Printable excerpt of untrusted bytes for an error message.
+std::string Excerpt(const char* b, const char* e, size_t max_len = 40) {
+  std::string out;
+  for (const char* p = b; p < e && out.size() < max_len; ++p) {
+    const unsigned char c = static_cast<unsigned char>(*p);
+    out += (c >= 32 && c < 127) ? static_cast<char>(c) : '?';
+  }
+  if (static_cast<size_t>(e - b) > max_len) out += "...";
+  return out;
+}
+std::string Excerpt(std::string_view s, size_t max_len = 40) {
+  return Excerpt(s.data(), s.data() + s.size(), max_len);
+}
+
+// Lines of text ending at '\n' ('\r' before it is whitespace).
+struct Line {
+  const char* b = nullptr;
+  const char* e = nullptr;
+  uint64_t number = 0;  // 1-based line number in the file
+};
+
+inline bool IsBlank(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
+class LineReader {
+ public:
+  LineReader(const char* p, const char* end, uint64_t lines_before)
+      : p_(p), end_(end), number_(lines_before) {}
+  // The next line (blank lines included); false at the end of the data.
+  bool NextAny(Line* line) {
+    if (p_ >= end_) return false;
+    const void* nl = std::memchr(p_, '\n', static_cast<size_t>(end_ - p_));
+    const char* e = nl ? static_cast<const char*>(nl) : end_;
+    *line = Line{p_, e, ++number_};
+    p_ = nl ? e + 1 : end_;
+    return true;
+  }
+  // The next line that is not blank, leading whitespace skipped.
+  bool Next(Line* line) {
+    while (NextAny(line)) {
+      while (line->b < line->e && IsBlank(*line->b)) ++line->b;
+      if (line->b < line->e) return true;
+    }
+    return false;
+  }
+  // Start of the bytes after the lines read so far.
+  const char* position() const { return p_; }
+
+ private:
+  const char* p_;
+  const char* end_;
+  uint64_t number_;
+};
+
+// Splits the next whitespace-separated token off [*p, e).
+inline bool NextToken(const char** p, const char* e, std::string_view* token) {
+  const char* q = *p;
+  while (q < e && IsBlank(*q)) ++q;
+  if (q == e) {
+    *p = q;
+    return false;
+  }
+  const char* b = q;
+  while (q < e && !IsBlank(*q)) ++q;
+  *token = std::string_view(b, static_cast<size_t>(q - b));
+  *p = q;
+  return true;
+}
+
+std::vector<std::string_view> Tokens(const Line& line) {
+  std::vector<std::string_view> tokens;
+  const char* p = line.b;
+  std::string_view token;
+  while (NextToken(&p, line.e, &token)) tokens.push_back(token);
+  return tokens;
+}
+
+// Unsigned decimal count (digits only, at most `max`).
+bool ParseCount(std::string_view token, uint64_t max, uint64_t* value) {
+  if (token.empty() || token.size() > 20) return false;
+  for (char c : token) {
+    if (c < '0' || c > '9') return false;
+  }
+  const auto r =
+      std::from_chars(token.data(), token.data() + token.size(), *value);
+  return r.ec == std::errc() && *value <= max;
+}
+
+// ---------------------------------------------------------------------------
+// Scalar types and what each field of a file becomes.
+
+enum class Scalar : uint8_t {
+  kInt8,
+  kUint8,
+  kInt16,
+  kUint16,
+  kInt32,
+  kUint32,
+  kInt64,
+  kUint64,
+  kFloat32,
+  kFloat64,
+};
+
+size_t SizeOf(Scalar s) {
+  static constexpr size_t kSizes[] = {1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+  return kSizes[static_cast<int>(s)];
+}
+bool IsFloat(Scalar s) {
+  return s == Scalar::kFloat32 || s == Scalar::kFloat64;
+}
+
+enum class Target : uint8_t {
+  kSkip,
+  kX,
+  kY,
+  kZ,
+  kPackedRgb,
+  kRed,
+  kGreen,
+  kBlue,
+  kConfidence,
+  kInstanceId,
+  kIntensity,
+  kRing,
+};
+
+// A PLY property or a PCD field.
+struct FieldSpec {
+  std::string name;
+  std::string type_name;  // as the file spells it (PLY) or e.g. "F 4" (PCD)
+  Scalar type = Scalar::kFloat32;
+  uint64_t count = 1;  // PCD COUNT: values per point
+  bool is_list = false;
+  Scalar list_count_type = Scalar::kUint8;
+  Target target = Target::kSkip;
+
+  size_t Bytes() const { return SizeOf(type) * static_cast<size_t>(count); }
+};
+
+// Picks what each field becomes (point_cloud_io.h, "Attributes"). `what` is
+// "property" (PLY) or "field" (PCD).
+void AssignTargets(const std::string& path,
+                   const char* what,
+                   std::vector<FieldSpec>* fields) {
+  auto find = [&](std::string_view name) -> FieldSpec* {
+    FieldSpec* found = nullptr;
+    for (FieldSpec& f : *fields) {
+      if (f.name != name) continue;
+      if (found) ThrowInputError(path, "duplicate ", what, " '", name, "'");
+      found = &f;
+    }
+    return found;
+  };
+  auto usable = [](const FieldSpec* f) {
+    return f && !f->is_list && f->count == 1;
+  };
+  const Target axes[] = {Target::kX, Target::kY, Target::kZ};
+  const char* axis_names[] = {"x", "y", "z"};
+  for (int k = 0; k < 3; ++k) {
+    FieldSpec* f = find(axis_names[k]);
+    if (!f)
+      ThrowInputError(path, "no x/y/z ", what, "s (", axis_names[k],
+                      " is missing)");
+    if (!usable(f) || !IsFloat(f->type)) {
+      ThrowInputError(path, what, " '", axis_names[k],
+                      "' must be one float or double value (it is ",
+                      f->is_list ? "a list" : f->type_name.c_str(),
+                      f->count != 1 ? " with COUNT > 1" : "", ")");
+    }
+    f->target = axes[k];
+  }
+  FieldSpec* packed = find("rgb");
+  FieldSpec* rgba = find("rgba");
+  if (!(usable(packed) && packed->Bytes() == 4)) packed = rgba;
+  if (usable(packed) && packed->Bytes() == 4) {
+    packed->target = Target::kPackedRgb;
+  } else {
+    const char* sets[][3] = {{"red", "green", "blue"},
+                             {"diffuse_red", "diffuse_green", "diffuse_blue"},
+                             {"r", "g", "b"}};
+    for (const auto& set : sets) {
+      FieldSpec* c[3] = {find(set[0]), find(set[1]), find(set[2])};
+      if (usable(c[0]) && usable(c[1]) && usable(c[2])) {
+        c[0]->target = Target::kRed;
+        c[1]->target = Target::kGreen;
+        c[2]->target = Target::kBlue;
+        break;
+      }
     }
   }
-  return values;
+  const std::pair<const char*, Target> scalars[] = {
+      {"confidence", Target::kConfidence},
+      {"instance_id", Target::kInstanceId},
+      {"intensity", Target::kIntensity},
+      {"ring", Target::kRing}};
+  for (const auto& [name, target] : scalars) {
+    FieldSpec* f = find(name);
+    if (usable(f)) f->target = target;
+  }
+}
+
+// Raw pointers into the arrays of the cloud being read.
+struct CloudColumns {
+  float* positions = nullptr;  // x y z per point
+  uint8_t* colors = nullptr;   // r g b per point
+  float* confidence = nullptr;
+  int32_t* instance_ids = nullptr;
+  float* intensity = nullptr;
+  float* ring = nullptr;
+};
+
+// Sizes `cloud` for `n` points and the attributes `fields` map to.
+CloudColumns AllocateCloud(size_t n,
+                           const std::vector<FieldSpec>& fields,
+                           PointCloud* cloud) {
+  bool has[static_cast<int>(Target::kRing) + 1] = {};
+  for (const FieldSpec& f : fields) has[static_cast<int>(f.target)] = true;
+  auto want = [&](Target t) { return has[static_cast<int>(t)]; };
+  CloudColumns out;
+  cloud->positions.resize(n);  // Eigen's default constructor: no zero fill
+  out.positions = n ? cloud->positions[0].data() : nullptr;
+  if (want(Target::kPackedRgb) || want(Target::kRed)) {
+    cloud->colors.resize(n);
+    out.colors = n ? cloud->colors[0].data() : nullptr;
+  }
+  if (want(Target::kConfidence)) {
+    cloud->confidence.resize(n);
+    out.confidence = cloud->confidence.data();
+  }
+  if (want(Target::kInstanceId)) {
+    cloud->instance_ids.resize(n);
+    out.instance_ids = cloud->instance_ids.data();
+  }
+  if (want(Target::kIntensity)) {
+    cloud->intensity.resize(n);
+    out.intensity = cloud->intensity.data();
+  }
+  if (want(Target::kRing)) {
+    cloud->ring.resize(n);
+    out.ring = cloud->ring.data();
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// Value conversions (the same for binary and ASCII input).
+
+template <typename T>
+inline T ByteSwapped(T v) {
+  if constexpr (sizeof(T) == 1) {
+    return v;
+  } else {
+    using U = std::conditional_t<
+        sizeof(T) == 2, uint16_t,
+        std::conditional_t<sizeof(T) == 4, uint32_t, uint64_t>>;
+    U u;
+    std::memcpy(&u, &v, sizeof(T));
+    if constexpr (sizeof(T) == 2) u = __builtin_bswap16(u);
+    if constexpr (sizeof(T) == 4) u = __builtin_bswap32(u);
+    if constexpr (sizeof(T) == 8) u = __builtin_bswap64(u);
+    std::memcpy(&v, &u, sizeof(T));
+    return v;
+  }
+}
+
+template <typename T, bool kSwap>
+inline T Load(const char* p) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  if constexpr (kSwap) v = ByteSwapped(v);
+  return v;
+}
+
+template <typename T>
+inline float ToFloat(T v) {
+  if constexpr (std::is_same_v<T, float>) {
+    return v;
+  } else {
+    return static_cast<float>(static_cast<double>(v));
+  }
+}
+
+// A colour channel: rounded and clamped to 0..255 (NaN becomes 0).
+template <typename T>
+inline uint8_t ToChannel(T v) {
+  if constexpr (std::is_floating_point_v<T>) {
+    const double d = v;
+    if (!(d > 0)) return 0;
+    if (d >= 255) return 255;
+    return static_cast<uint8_t>(std::lround(d));
+  } else if constexpr (std::is_signed_v<T>) {
+    return static_cast<uint8_t>(v < 0 ? 0 : (v > 255 ? 255 : v));
+  } else {
+    return static_cast<uint8_t>(v > 255 ? 255 : v);
+  }
+}
+
+// Truncates toward zero (as a C++ cast); false outside the int32 range.
+template <typename T>
+inline bool ToInstanceId(T v, int32_t* out) {
+  const double d = static_cast<double>(v);
+  if (!(d > -2147483649.0 && d < 2147483648.0)) return false;
+  *out = static_cast<int32_t>(d);
+  return true;
+}
+
+[[noreturn]] void ThrowInstanceIdRange(const std::string& path,
+                                       size_t point,
+                                       double value) {
+  ThrowInputError(path, "point ", point, " has instance_id ", value,
+                  ", outside the int32 range");
+}
+
+inline void StorePackedRgb(uint32_t bits, uint8_t* rgb) {
+  rgb[0] = static_cast<uint8_t>(bits >> 16);
+  rgb[1] = static_cast<uint8_t>(bits >> 8);
+  rgb[2] = static_cast<uint8_t>(bits);
+}
+
+// Stores one value of point `i` (ASCII and variable-size binary records).
+void StoreValue(const std::string& path,
+                Target target,
+                size_t i,
+                double v,
+                const CloudColumns& out) {
+  switch (target) {
+    case Target::kX:
+    case Target::kY:
+    case Target::kZ:
+      out.positions[3 * i +
+                    (static_cast<int>(target) - static_cast<int>(Target::kX))] =
+          static_cast<float>(v);
+      return;
+    case Target::kRed:
+    case Target::kGreen:
+    case Target::kBlue:
+      out.colors[3 * i + (static_cast<int>(target) -
+                          static_cast<int>(Target::kRed))] = ToChannel(v);
+      return;
+    case Target::kConfidence:
+      out.confidence[i] = static_cast<float>(v);
+      return;
+    case Target::kIntensity:
+      out.intensity[i] = static_cast<float>(v);
+      return;
+    case Target::kRing:
+      out.ring[i] = static_cast<float>(v);
+      return;
+    case Target::kInstanceId:
+      if (!ToInstanceId(v, &out.instance_ids[i]))
+        ThrowInstanceIdRange(path, i, v);
+      return;
+    case Target::kPackedRgb:  // stored through StorePackedRgb
+    case Target::kSkip:
+      return;
+  }
+}
+
+// Converts `n` values of type T (points first .. first + n - 1), `stride`
+// bytes apart from `src`, into the column of `target`.
+template <typename T, bool kSwap>
+void ConvertColumn(const std::string& path,
+                   const char* src,
+                   size_t stride,
+                   size_t first,
+                   size_t n,
+                   Target target,
+                   const CloudColumns& out) {
+  switch (target) {
+    case Target::kX:
+    case Target::kY:
+    case Target::kZ: {
+      float* dst = out.positions + 3 * first +
+                   (static_cast<int>(target) - static_cast<int>(Target::kX));
+      for (size_t i = 0; i < n; ++i)
+        dst[3 * i] = ToFloat(Load<T, kSwap>(src + i * stride));
+      return;
+    }
+    case Target::kRed:
+    case Target::kGreen:
+    case Target::kBlue: {
+      uint8_t* dst =
+          out.colors + 3 * first +
+          (static_cast<int>(target) - static_cast<int>(Target::kRed));
+      for (size_t i = 0; i < n; ++i)
+        dst[3 * i] = ToChannel(Load<T, kSwap>(src + i * stride));
+      return;
+    }
+    case Target::kPackedRgb:
+      if constexpr (sizeof(T) == 4) {
+        uint8_t* dst = out.colors + 3 * first;
+        for (size_t i = 0; i < n; ++i) {
+          StorePackedRgb(Load<uint32_t, kSwap>(src + i * stride), dst + 3 * i);
+        }
+      }
+      return;
+    case Target::kConfidence:
+    case Target::kIntensity:
+    case Target::kRing: {
+      float* dst = (target == Target::kConfidence  ? out.confidence
+                    : target == Target::kIntensity ? out.intensity
+                                                   : out.ring) +
+                   first;
+      for (size_t i = 0; i < n; ++i)
+        dst[i] = ToFloat(Load<T, kSwap>(src + i * stride));
+      return;
+    }
+    case Target::kInstanceId: {
+      int32_t* dst = out.instance_ids + first;
+      for (size_t i = 0; i < n; ++i) {
+        const T v = Load<T, kSwap>(src + i * stride);
+        if (!ToInstanceId(v, dst + i))
+          ThrowInstanceIdRange(path, first + i, static_cast<double>(v));
+      }
+      return;
+    }
+    case Target::kSkip:
+      return;
+  }
+}
+
+using ColumnFn = void (*)(const std::string&,
+                          const char*,
+                          size_t,
+                          size_t,
+                          size_t,
+                          Target,
+                          const CloudColumns&);
+
+template <bool kSwap>
+ColumnFn ColumnFunctionFor(Scalar type) {
+  switch (type) {
+    case Scalar::kInt8:
+      return &ConvertColumn<int8_t, kSwap>;
+    case Scalar::kUint8:
+      return &ConvertColumn<uint8_t, kSwap>;
+    case Scalar::kInt16:
+      return &ConvertColumn<int16_t, kSwap>;
+    case Scalar::kUint16:
+      return &ConvertColumn<uint16_t, kSwap>;
+    case Scalar::kInt32:
+      return &ConvertColumn<int32_t, kSwap>;
+    case Scalar::kUint32:
+      return &ConvertColumn<uint32_t, kSwap>;
+    case Scalar::kInt64:
+      return &ConvertColumn<int64_t, kSwap>;
+    case Scalar::kUint64:
+      return &ConvertColumn<uint64_t, kSwap>;
+    case Scalar::kFloat32:
+      return &ConvertColumn<float, kSwap>;
+    case Scalar::kFloat64:
+      return &ConvertColumn<double, kSwap>;
+  }
+  return nullptr;
+}
+
+// One mapped field of fixed-layout binary data: value of point i at
+// base + i * stride.
+struct Column {
+  const char* base;
+  size_t stride;
+  Target target;
+  ColumnFn convert;
+};
+
+// Converts fixed-layout binary data block by block (a block of points stays
+// in cache while each field is copied out of it).
+void ConvertColumns(const std::string& path,
+                    const std::vector<Column>& columns,
+                    size_t n,
+                    const CloudColumns& out) {
+  constexpr size_t kBlock = 4096;
+  for (size_t first = 0; first < n; first += kBlock) {
+    const size_t m = std::min(kBlock, n - first);
+    for (const Column& c : columns) {
+      c.convert(path, c.base + first * c.stride, c.stride, first, m, c.target,
+                out);
+    }
+  }
+}
+
+// One value of `type` at p, as a double (variable-size binary records).
+double LoadNumber(const char* p, Scalar type, bool swap) {
+  switch (type) {
+    case Scalar::kInt8:
+      return Load<int8_t, false>(p);
+    case Scalar::kUint8:
+      return Load<uint8_t, false>(p);
+    case Scalar::kInt16:
+      return swap ? Load<int16_t, true>(p) : Load<int16_t, false>(p);
+    case Scalar::kUint16:
+      return swap ? Load<uint16_t, true>(p) : Load<uint16_t, false>(p);
+    case Scalar::kInt32:
+      return swap ? Load<int32_t, true>(p) : Load<int32_t, false>(p);
+    case Scalar::kUint32:
+      return swap ? Load<uint32_t, true>(p) : Load<uint32_t, false>(p);
+    case Scalar::kInt64:
+      return static_cast<double>(swap ? Load<int64_t, true>(p)
+                                      : Load<int64_t, false>(p));
+    case Scalar::kUint64:
+      return static_cast<double>(swap ? Load<uint64_t, true>(p)
+                                      : Load<uint64_t, false>(p));
+    case Scalar::kFloat32:
+      return swap ? Load<float, true>(p) : Load<float, false>(p);
+    case Scalar::kFloat64:
+      return swap ? Load<double, true>(p) : Load<double, false>(p);
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------
+// ASCII values.
+
+enum class Parse { kOk, kBad, kOutOfRange };
+
+template <typename T>
+Parse ParseInteger(const char* b, const char* e, T* v) {
+  const auto r = std::from_chars(b, e, *v);
+  if (r.ptr != e ||
+      (r.ec != std::errc() && r.ec != std::errc::result_out_of_range)) {
+    return Parse::kBad;
+  }
+  return r.ec == std::errc() ? Parse::kOk : Parse::kOutOfRange;
+}
+
+template <typename T>
+Parse ParseFloating(const char* b, const char* e, T* v) {
+  const auto r = std::from_chars(b, e, *v);
+  if (r.ptr != e) return Parse::kBad;
+  if (r.ec == std::errc()) return Parse::kOk;
+  if (r.ec != std::errc::result_out_of_range) return Parse::kBad;
+  // Underflow is a zero or a denormal, not an error; overflow is.
+  long double wide = 0;
+  const auto w = std::from_chars(b, e, wide);
+  if (w.ec == std::errc() && w.ptr == e && std::fabs(wide) < 1) {
+    *v = static_cast<T>(wide);
+    return Parse::kOk;
+  }
+  return Parse::kOutOfRange;
+}
+
+// Parses `token` as a value of `type` (an optional leading '+' is allowed).
+Parse ParseNumber(std::string_view token, Scalar type, double* value) {
+  const char* b = token.data();
+  const char* e = b + token.size();
+  if (e - b > 1 && *b == '+' && b[1] != '-' && b[1] != '+') ++b;
+  switch (type) {
+    case Scalar::kFloat32: {
+      float f = 0;
+      const Parse p = ParseFloating(b, e, &f);
+      *value = f;
+      return p;
+    }
+    case Scalar::kFloat64:
+      return ParseFloating(b, e, value);
+    case Scalar::kUint64: {
+      uint64_t u = 0;
+      if (b < e && *b == '-') {
+        int64_t s;
+        return ParseInteger(b, e, &s) == Parse::kBad ? Parse::kBad
+                                                     : Parse::kOutOfRange;
+      }
+      const Parse p = ParseInteger(b, e, &u);
+      *value = static_cast<double>(u);
+      return p;
+    }
+    default: {
+      int64_t s;
+      const Parse p = ParseInteger(b, e, &s);
+      if (p != Parse::kOk) return p;
+      int64_t lo = std::numeric_limits<int64_t>::min();
+      int64_t hi = std::numeric_limits<int64_t>::max();
+      switch (type) {
+        case Scalar::kInt8:
+          lo = -128, hi = 127;
+          break;
+        case Scalar::kUint8:
+          lo = 0, hi = 255;
+          break;
+        case Scalar::kInt16:
+          lo = -32768, hi = 32767;
+          break;
+        case Scalar::kUint16:
+          lo = 0, hi = 65535;
+          break;
+        case Scalar::kInt32:
+          lo = std::numeric_limits<int32_t>::min();
+          hi = std::numeric_limits<int32_t>::max();
+          break;
+        case Scalar::kUint32:
+          lo = 0, hi = std::numeric_limits<uint32_t>::max();
+          break;
+        default:
+          break;
+      }
+      if (s < lo || s > hi) return Parse::kOutOfRange;
+      *value = static_cast<double>(s);
+      return Parse::kOk;
+    }
+  }
+}
+
+// The packed colour of an ASCII token: an unsigned integer is the uint32
+// itself (PCL 1.13 writes rgb so, even for TYPE F); otherwise a float field's
+// value is reinterpreted (older PCL wrote the float).
+Parse ParsePackedRgb(std::string_view token, Scalar type, uint32_t* bits) {
+  if (type == Scalar::kFloat32 &&
+      token.find_first_not_of("0123456789") != std::string_view::npos) {
+    float f = 0;
+    const Parse p =
+        ParseFloating(token.data(), token.data() + token.size(), &f);
+    std::memcpy(bits, &f, 4);
+    return p;
+  }
+  double v = 0;
+  const Parse p =
+      ParseNumber(token, type == Scalar::kFloat32 ? Scalar::kUint32 : type, &v);
+  *bits = static_cast<uint32_t>(static_cast<int64_t>(v));
+  return p;
+}
+
+[[noreturn]] void ThrowBadAsciiValue(const std::string& path,
+                                     const Line& line,
+                                     std::string_view token,
+                                     const FieldSpec& f,
+                                     const char* what,
+                                     bool list_length,
+                                     Parse result) {
+  const std::string type = list_length ? "list length" : f.type_name;
+  if (result == Parse::kOutOfRange) {
+    ThrowInputError(path, "line ", line.number, ": value '", Excerpt(token),
+                    "' is out of range for ", what, " '", f.name, "' (", type,
+                    ")");
+  }
+  ThrowInputError(path, "line ", line.number, ": bad value '", Excerpt(token),
+                  "' for ", what, " '", f.name, "' (", type, ")");
+}
+
+// Parses one ASCII line holding the values of `fields` for point `i` (a PLY
+// vertex or a PCD point). `what` is "property" or "field".
+void ParseAsciiRow(const std::string& path,
+                   const Line& line,
+                   const std::vector<FieldSpec>& fields,
+                   const char* what,
+                   size_t i,
+                   const CloudColumns& out) {
+  const char* p = line.b;
+  std::string_view token;
+  auto next = [&](const FieldSpec& f) {
+    if (!NextToken(&p, line.e, &token)) {
+      ThrowInputError(path, "line ", line.number,
+                      ": too few values (the line ends before ", what, " '",
+                      f.name, "')");
+    }
+  };
+  for (const FieldSpec& f : fields) {
+    uint64_t values = f.count;
+    if (f.is_list) {
+      next(f);
+      double length;
+      const Parse r = ParseNumber(token, f.list_count_type, &length);
+      if (r != Parse::kOk || length < 0) {
+        ThrowBadAsciiValue(path, line, token, f, what, true,
+                           r == Parse::kOk ? Parse::kOutOfRange : r);
+      }
+      values = static_cast<uint64_t>(length);
+    }
+    for (uint64_t k = 0; k < values; ++k) {
+      next(f);
+      if (f.target == Target::kPackedRgb) {
+        uint32_t bits;
+        const Parse r = ParsePackedRgb(token, f.type, &bits);
+        if (r != Parse::kOk)
+          ThrowBadAsciiValue(path, line, token, f, what, false, r);
+        StorePackedRgb(bits, out.colors + 3 * i);
+        continue;
+      }
+      double v;
+      const Parse r = ParseNumber(token, f.type, &v);
+      if (r != Parse::kOk)
+        ThrowBadAsciiValue(path, line, token, f, what, false, r);
+      if (f.target != Target::kSkip) StoreValue(path, f.target, i, v, out);
+    }
+  }
+  if (NextToken(&p, line.e, &token)) {
+    ThrowInputError(path, "line ", line.number, ": too many values ('",
+                    Excerpt(token), "' after the last ", what, ")");
+  }
+}
+
+// ---------------------------------------------------------------------------
+// The NaN policy (point_cloud_io.h).
+
+const char* NonFiniteName(float v) {
+  return std::isnan(v) ? "nan" : (v > 0 ? "+inf" : "-inf");
+}
+
+template <typename T>
+void KeepFlagged(const std::vector<uint8_t>& keep, std::vector<T>* v) {
+  if (v->empty()) return;
+  size_t j = 0;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    if (keep[i]) (*v)[j++] = (*v)[i];
+  }
+  v->resize(j);
+}
+
+// Throws on the first point with a non-finite coordinate, unless `drop_nan`
+// and the point has a NaN coordinate: then it is removed with its attributes.
+// Returns the number of points removed.
+uint64_t ApplyNanPolicy(const std::string& path,
+                        bool drop_nan,
+                        PointCloud* cloud) {
+  const size_t n = cloud->size();
+  const float* xyz = n ? cloud->positions[0].data() : nullptr;
+  std::vector<uint8_t> keep;
+  uint64_t dropped = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const float x = xyz[3 * i], y = xyz[3 * i + 1], z = xyz[3 * i + 2];
+    if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) continue;
+    if (drop_nan && (std::isnan(x) || std::isnan(y) || std::isnan(z))) {
+      if (keep.empty()) keep.assign(n, 1);
+      keep[i] = 0;
+      ++dropped;
+      continue;
+    }
+    const float bad = !std::isfinite(x) ? x : (!std::isfinite(y) ? y : z);
+    ThrowInputError(path, "point ", i, " has a non-finite coordinate (",
+                    NonFiniteName(bad), ")");
+  }
+  if (dropped > 0) {
+    KeepFlagged(keep, &cloud->positions);
+    KeepFlagged(keep, &cloud->colors);
+    KeepFlagged(keep, &cloud->confidence);
+    KeepFlagged(keep, &cloud->instance_ids);
+    KeepFlagged(keep, &cloud->intensity);
+    KeepFlagged(keep, &cloud->ring);
+  }
+  return dropped;
+}
+
+// ---------------------------------------------------------------------------
+// .pcd.bin and KITTI .bin.
+
+// Reads a file of `floats_per_point` little-endian float32 values per point:
+// x y z intensity [ring].
+PointCloud ReadFloatRecords(const std::string& path,
+                            size_t floats_per_point,
+                            const char* layout) {
+  const FileBuffer file = ReadWholeFile(path);
+  const size_t record = floats_per_point * sizeof(float);
+  if (file.size % record != 0) {
+    ThrowInputError(path, "size ", file.size, " bytes is not a multiple of ",
+                    record, " (", layout, ")");
+  }
+  const size_t n = file.size / record;
+  if (n > kMaxPointCloudPoints) {
+    ThrowInputError(path, n, " points, more than the limit of ",
+                    kMaxPointCloudPoints);
+  }
+  std::vector<FieldSpec> fields(floats_per_point);
+  const Target targets[] = {Target::kX, Target::kY, Target::kZ,
+                            Target::kIntensity, Target::kRing};
+  std::vector<Column> columns;
+  for (size_t k = 0; k < floats_per_point; ++k) {
+    fields[k].target = targets[k];
+    columns.push_back(Column{file.begin() + 4 * k, record, targets[k],
+                             &ConvertColumn<float, false>});
+  }
+  PointCloud cloud;
+  const CloudColumns out = AllocateCloud(n, fields, &cloud);
+  ConvertColumns(path, columns, n, out);
+  ApplyNanPolicy(path, /*drop_nan=*/false, &cloud);
+  return cloud;
 }
 
 void WriteFloatRecords(const std::string& path,
@@ -54,239 +875,749 @@ void WriteFloatRecords(const std::string& path,
     v[3] = cloud.HasIntensity() ? cloud.intensity[i] : 0.f;
     if (with_ring) v[4] = cloud.HasRing() ? cloud.ring[i] : 0.f;
   }
-  WriteFileAtomic(path, values.data(),
-                                values.size() * sizeof(float));
+  WriteFileAtomic(path, values.data(), values.size() * sizeof(float));
 }
 
-// Checks that the file can be opened and starts with `magic` (before handing it
-// to PCL, which reports problems only on stderr).
-void CheckStartsWith(const std::string& path,
-                     const std::string& magic,
-                     const char* kind) {
-  const uint64_t size = FileSizeOrThrow(path);
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) ThrowOpenError(path, errno);
-  std::string head(magic.size(), '\0');
-  const size_t got = std::fread(&head[0], 1, head.size(), file);
-  std::fclose(file);
-  if (size == 0)
-    ThrowInputError(path, "empty file (expected a ", kind, " file)");
-  if (got != head.size() || head != magic)
-    ThrowInputError(path, "not a ", kind, " file");
+// ---------------------------------------------------------------------------
+// PLY.
+
+struct PlyElement {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<FieldSpec> properties;
+  bool has_lists = false;
+  uint64_t header_line = 0;
+
+  // Bytes of one item without list items (exact when !has_lists).
+  uint64_t MinBinaryBytes() const {
+    uint64_t bytes = 0;
+    for (const FieldSpec& p : properties)
+      bytes += SizeOf(p.is_list ? p.list_count_type : p.type);
+    return bytes;
+  }
+};
+
+enum class PlyFormat { kAscii, kBinaryLittleEndian, kBinaryBigEndian };
+
+struct PlyHeader {
+  PlyFormat format = PlyFormat::kAscii;
+  std::vector<PlyElement> elements;
+  size_t vertex = 0;       // index of the vertex element
+  size_t data_offset = 0;  // first byte after end_header's line
+  uint64_t lines = 0;      // header lines (ASCII line numbers continue)
+};
+
+bool PlyScalar(std::string_view name, Scalar* type) {
+  static const std::pair<const char*, Scalar> kTypes[] = {
+      {"char", Scalar::kInt8},      {"int8", Scalar::kInt8},
+      {"uchar", Scalar::kUint8},    {"uint8", Scalar::kUint8},
+      {"short", Scalar::kInt16},    {"int16", Scalar::kInt16},
+      {"ushort", Scalar::kUint16},  {"uint16", Scalar::kUint16},
+      {"int", Scalar::kInt32},      {"int32", Scalar::kInt32},
+      {"uint", Scalar::kUint32},    {"uint32", Scalar::kUint32},
+      {"float", Scalar::kFloat32},  {"float32", Scalar::kFloat32},
+      {"double", Scalar::kFloat64}, {"float64", Scalar::kFloat64}};
+  for (const auto& [n, t] : kTypes) {
+    if (name == n) {
+      *type = t;
+      return true;
+    }
+  }
+  return false;
 }
 
-// Validates a PCD header (and the size of binary data) before PCL sees the
-// file: PCL 1.13's PCDReader crashes on some malformed headers instead of
-// returning an error.
-void CheckPcdHeader(const std::string& path) {
-  const uint64_t file_size = FileSizeOrThrow(path);
-  if (file_size == 0) ThrowInputError(path, "empty file (expected a PCD file)");
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) ThrowOpenError(path, errno);
-  std::string head(static_cast<size_t>(std::min<uint64_t>(file_size, 1 << 16)),
-                   '\0');
-  head.resize(std::fread(&head[0], 1, head.size(), file));
-  std::fclose(file);
-
-  std::vector<std::string> fields;
-  std::vector<int> sizes, counts;
-  std::string types, data;
-  uint64_t width = 0, height = 0, points = 0;
-  bool have_width = false, have_height = false, have_points = false;
-  size_t pos = 0, data_start = 0;
-  int line_no = 0;
+PlyHeader ParsePlyHeader(const std::string& path, const FileBuffer& file) {
+  if (file.size == 0) ThrowInputError(path, "empty file (expected a PLY file)");
+  LineReader lines(file.begin(), file.end(), 0);
+  Line line;
+  lines.NextAny(&line);
+  if (line.e > line.b && line.e[-1] == '\r') --line.e;
+  if (std::string_view(line.b, static_cast<size_t>(line.e - line.b)) != "ply") {
+    ThrowInputError(path, "not a PLY file");
+  }
+  PlyHeader header;
+  bool have_format = false, have_vertex = false;
   auto bad = [&](const std::string& what) {
-    ThrowInputError(path, "malformed PCD header: ", what, " (line ", line_no,
-                    ")");
-  };
-  auto parse_uint = [&](const std::string& token) -> uint64_t {
-    if (token.empty() ||
-        token.find_first_not_of("0123456789") != std::string::npos ||
-        token.size() > 12) {
-      bad("'" + token.substr(0, 20) + "' is not a count");
-    }
-    return std::stoull(token);
-  };
-  while (data.empty()) {
-    const size_t end = head.find('\n', pos);
-    if (end == std::string::npos) {
-      ++line_no;
-      bad("no DATA line");
-    }
-    std::string line = head.substr(pos, end - pos);
-    pos = end + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream ss(line);
-    std::string key, token;
-    ss >> key;
-    std::vector<std::string> values;
-    while (ss >> token) values.push_back(token);
-    if (key == "VERSION" || key == "VIEWPOINT") {
-      continue;
-    } else if (key == "FIELDS" || key == "COLUMNS") {
-      fields = values;
-    } else if (key == "SIZE") {
-      for (const auto& v : values) {
-        const uint64_t size = parse_uint(v);
-        if (size != 1 && size != 2 && size != 4 && size != 8) bad("SIZE " + v);
-        sizes.push_back(static_cast<int>(size));
-      }
-    } else if (key == "TYPE") {
-      for (const auto& v : values) {
-        if (v != "I" && v != "U" && v != "F") bad("TYPE " + v);
-        types += v;
-      }
-    } else if (key == "COUNT") {
-      for (const auto& v : values) {
-        const uint64_t count = parse_uint(v);
-        if (count == 0 || count > 4096) bad("COUNT " + v);
-        counts.push_back(static_cast<int>(count));
-      }
-    } else if (key == "WIDTH" && values.size() == 1) {
-      width = parse_uint(values[0]);
-      have_width = true;
-    } else if (key == "HEIGHT" && values.size() == 1) {
-      height = parse_uint(values[0]);
-      have_height = true;
-    } else if (key == "POINTS" && values.size() == 1) {
-      points = parse_uint(values[0]);
-      have_points = true;
-    } else if (key == "DATA" && values.empty()) {
-      bad("DATA without a format");
-    } else if (key == "DATA") {
-      data = values[0];
-      data_start = pos;
-    } else {
-      bad("unexpected line '" + line.substr(0, 40) + "'");
-    }
-  }
-  if (fields.empty()) bad("no FIELDS");
-  if (counts.empty()) counts.assign(fields.size(), 1);
-  if (sizes.size() != fields.size() || types.size() != fields.size() ||
-      counts.size() != fields.size()) {
-    bad("FIELDS, SIZE, TYPE and COUNT have different lengths");
-  }
-  if (!have_width || !have_height) bad("missing WIDTH or HEIGHT");
-  if (have_points && points != width * height)
-    bad("POINTS is not WIDTH x HEIGHT");
-  if (data != "ascii" && data != "binary" && data != "binary_compressed") {
-    bad("unknown DATA format '" + data.substr(0, 20) + "'");
-  }
-  uint64_t point_size = 0;
-  for (size_t i = 0; i < fields.size(); ++i)
-    point_size += uint64_t(sizes[i]) * counts[i];
-  const uint64_t available = file_size - data_start;
-  if (data == "binary" && width * height * point_size > available) {
-    ThrowInputError(path, "truncated: header says ", width * height,
-                    " points of ", point_size, " bytes, file has ", available,
-                    " bytes of data");
-  }
-  if (data == "binary_compressed" && width * height > 0 && available < 8) {
-    ThrowInputError(path, "truncated: compressed data is missing");
-  }
-}
-
-// Validates a PLY header and, for ASCII files, that the body holds enough
-// numbers: PCL's reader fills missing ASCII points with zeros instead of
-// failing. (PCL detects short binary bodies.)
-void CheckPly(const std::string& path) {
-  CheckStartsWith(path, "ply", "PLY");
-  const std::string text = ReadFileText(path);
-  size_t pos = 0;
-  int line_no = 0;
-  bool ascii = false, have_format = false;
-  uint64_t min_tokens = 0, element_count = 0;
-  uint64_t tokens_per_item = 0;
-  auto bad = [&](const std::string& what) {
-    ThrowInputError(path, "malformed PLY header: ", what, " (line ", line_no,
-                    ")");
-  };
-  auto flush_element = [&] {
-    if (element_count > 0 && tokens_per_item > 0) {
-      if (element_count > (uint64_t{1} << 40)) bad("absurd element count");
-      min_tokens += element_count * tokens_per_item;
-    }
-    element_count = 0;
-    tokens_per_item = 0;
+    ThrowInputError(path, "malformed PLY header: ", what, " (line ",
+                    line.number, ")");
   };
   while (true) {
-    const size_t end = text.find('\n', pos);
-    ++line_no;
-    if (end == std::string::npos) bad("no end_header");
-    std::string line = text.substr(pos, end - pos);
-    pos = end + 1;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ss(line);
-    std::string key;
-    ss >> key;
-    if (line_no == 1) continue;  // "ply"
-    if (key == "end_header") break;
+    if (!lines.NextAny(&line)) bad("no end_header");
+    const std::vector<std::string_view> t = Tokens(line);
+    if (t.empty()) continue;
+    const std::string_view key = t[0];
+    if (key == "end_header") {
+      if (t.size() != 1) bad("text after end_header");
+      break;
+    }
+    if (key == "comment" || key == "obj_info") continue;
     if (key == "format") {
-      std::string format;
-      ss >> format;
-      if (format != "ascii" && format != "binary_little_endian" &&
-          format != "binary_big_endian") {
-        bad("unknown format '" + format.substr(0, 30) + "'");
+      if (have_format) bad("a second format line");
+      if (t.size() != 3) bad("format needs a type and a version");
+      if (t[1] == "ascii") {
+        header.format = PlyFormat::kAscii;
+      } else if (t[1] == "binary_little_endian") {
+        header.format = PlyFormat::kBinaryLittleEndian;
+      } else if (t[1] == "binary_big_endian") {
+        header.format = PlyFormat::kBinaryBigEndian;
+      } else {
+        bad("unknown format '" + Excerpt(t[1]) + "'");
       }
-      ascii = format == "ascii";
       have_format = true;
     } else if (key == "element") {
-      flush_element();
-      std::string name, count;
-      ss >> name >> count;
-      if (count.empty() ||
-          count.find_first_not_of("0123456789") != std::string::npos ||
-          count.size() > 15) {
-        bad("bad element count '" + count.substr(0, 20) + "'");
+      if (t.size() != 3) bad("element needs a name and a count");
+      PlyElement element;
+      element.name = std::string(t[1]);
+      element.header_line = line.number;
+      if (!ParseCount(t[2], uint64_t{1} << 62, &element.count))
+        bad("bad element count '" + Excerpt(t[2]) + "'");
+      if (element.name == "vertex") {
+        if (have_vertex) bad("a second vertex element");
+        have_vertex = true;
+        header.vertex = header.elements.size();
       }
-      element_count = std::stoull(count);
+      header.elements.push_back(std::move(element));
     } else if (key == "property") {
-      ++tokens_per_item;  // a scalar, or the length of a list
-    } else if (key != "comment" && key != "obj_info" && !key.empty()) {
-      bad("unexpected line '" + line.substr(0, 40) + "'");
+      if (header.elements.empty()) bad("property before any element");
+      FieldSpec p;
+      if (t.size() == 5 && t[1] == "list") {
+        p.is_list = true;
+        if (!PlyScalar(t[2], &p.list_count_type) || IsFloat(p.list_count_type))
+          bad("bad list length type '" + Excerpt(t[2]) + "'");
+        if (!PlyScalar(t[3], &p.type))
+          bad("unknown type '" + Excerpt(t[3]) + "'");
+        p.type_name = "list " + std::string(t[2]) + " " + std::string(t[3]);
+        p.name = std::string(t[4]);
+        header.elements.back().has_lists = true;
+      } else if (t.size() == 3) {
+        if (!PlyScalar(t[1], &p.type))
+          bad("unknown type '" + Excerpt(t[1]) + "'");
+        p.type_name = std::string(t[1]);
+        p.name = std::string(t[2]);
+      } else {
+        bad("property needs a type and a name");
+      }
+      header.elements.back().properties.push_back(std::move(p));
+    } else {
+      bad("unexpected line '" + Excerpt(line.b, line.e) + "'");
     }
   }
-  flush_element();
-  if (!have_format) bad("no format line");
-  if (!ascii) return;
-  uint64_t tokens = 0;
-  bool in_token = false;
-  for (size_t i = pos; i < text.size(); ++i) {
-    const bool space = std::isspace(static_cast<unsigned char>(text[i]));
-    if (!space && !in_token) ++tokens;
-    in_token = !space;
+  header.lines = line.number;
+  header.data_offset = static_cast<size_t>(lines.position() - file.begin());
+  if (!have_format)
+    ThrowInputError(path, "malformed PLY header: no format line");
+  if (!have_vertex) ThrowInputError(path, "no vertex element");
+  for (const PlyElement& e : header.elements) {
+    if (e.properties.empty() && e.count > 0) {
+      ThrowInputError(path, "malformed PLY header: element '", Excerpt(e.name),
+                      "' has no properties (line ", e.header_line, ")");
+    }
   }
-  if (tokens < min_tokens) {
-    ThrowInputError(path, "truncated: header needs at least ", min_tokens,
-                    " ASCII values, file has ", tokens);
+  PlyElement& vertex = header.elements[header.vertex];
+  if (vertex.count > kMaxPointCloudPoints) {
+    ThrowInputError(path, "header declares ", vertex.count,
+                    " vertices, more than the limit of ", kMaxPointCloudPoints);
+  }
+  AssignTargets(path, "property", &vertex.properties);
+
+  // Every element must fit in what follows the header, before any allocation:
+  // binary items need at least their fixed bytes, ASCII items at least one
+  // character and one separator per property.
+  const uint64_t left = file.size - header.data_offset;
+  uint64_t used = 0;
+  for (const PlyElement& e : header.elements) {
+    const bool ascii = header.format == PlyFormat::kAscii;
+    const uint64_t item = ascii ? 2 * e.properties.size() : e.MinBinaryBytes();
+    const uint64_t room = ascii ? left + 1 - std::min(used, left + 1)
+                                : left - std::min(used, left);
+    if (item > 0 && e.count > room / item) {
+      ThrowInputError(path, "truncated or corrupt: the header declares ",
+                      e.count, " '", Excerpt(e.name), "' items of at least ",
+                      item, ascii ? " characters" : " bytes", ", but only ",
+                      left, " bytes follow the header");
+    }
+    used += e.count * item;
+  }
+  return header;
+}
+
+[[noreturn]] void ThrowPlyTruncated(const std::string& path,
+                                    const PlyElement& e,
+                                    uint64_t item) {
+  ThrowInputError(path, "truncated: '", Excerpt(e.name), "' item ", item,
+                  " of ", e.count, " runs past the end of the file");
+}
+
+// Skips one binary list property of item `i` of `e` at p.
+const char* SkipBinaryList(const std::string& path,
+                           const PlyElement& e,
+                           uint64_t i,
+                           const FieldSpec& f,
+                           const char* p,
+                           const char* end,
+                           bool swap) {
+  const size_t length_bytes = SizeOf(f.list_count_type);
+  if (static_cast<size_t>(end - p) < length_bytes)
+    ThrowPlyTruncated(path, e, i);
+  const double length = LoadNumber(p, f.list_count_type, swap);
+  p += length_bytes;
+  if (length < 0) {
+    ThrowInputError(path, "'", Excerpt(e.name), "' item ", i,
+                    ": negative list length ", length, " for '",
+                    Excerpt(f.name), "'");
+  }
+  if (length >
+      static_cast<double>(static_cast<size_t>(end - p) / SizeOf(f.type))) {
+    ThrowPlyTruncated(path, e, i);
+  }
+  return p + static_cast<size_t>(length) * SizeOf(f.type);
+}
+
+// Skips the items of a binary element; returns the first byte after them.
+const char* SkipBinaryElement(const std::string& path,
+                              const PlyElement& e,
+                              const char* p,
+                              const char* end,
+                              bool swap) {
+  if (!e.has_lists) {
+    const uint64_t item = e.MinBinaryBytes();
+    if (item > 0 && e.count > static_cast<uint64_t>(end - p) / item) {
+      ThrowPlyTruncated(path, e, static_cast<uint64_t>(end - p) / item);
+    }
+    return p + e.count * item;
+  }
+  for (uint64_t i = 0; i < e.count; ++i) {
+    for (const FieldSpec& f : e.properties) {
+      if (f.is_list) {
+        p = SkipBinaryList(path, e, i, f, p, end, swap);
+        continue;
+      }
+      if (static_cast<size_t>(end - p) < SizeOf(f.type))
+        ThrowPlyTruncated(path, e, i);
+      p += SizeOf(f.type);
+    }
+  }
+  return p;
+}
+
+// Reads the binary vertex element starting at p; returns the byte after it.
+const char* ReadBinaryVertices(const std::string& path,
+                               const PlyElement& vertex,
+                               const char* p,
+                               const char* end,
+                               bool swap,
+                               const CloudColumns& out) {
+  const size_t n = static_cast<size_t>(vertex.count);
+  if (!vertex.has_lists) {
+    // Fixed records (checked against the file size): column by column.
+    const size_t record = static_cast<size_t>(vertex.MinBinaryBytes());
+    if (n > static_cast<size_t>(end - p) / record) {
+      ThrowPlyTruncated(path, vertex, static_cast<size_t>(end - p) / record);
+    }
+    std::vector<Column> columns;
+    size_t offset = 0;
+    for (const FieldSpec& f : vertex.properties) {
+      if (f.target != Target::kSkip) {
+        columns.push_back(Column{p + offset, record, f.target,
+                                 swap ? ColumnFunctionFor<true>(f.type)
+                                      : ColumnFunctionFor<false>(f.type)});
+      }
+      offset += SizeOf(f.type);
+    }
+    ConvertColumns(path, columns, n, out);
+    return p + n * record;
+  }
+  // Records with lists: walk each one.
+  for (size_t i = 0; i < n; ++i) {
+    for (const FieldSpec& f : vertex.properties) {
+      if (f.is_list) {
+        p = SkipBinaryList(path, vertex, i, f, p, end, swap);
+        continue;
+      }
+      const size_t size = SizeOf(f.type);
+      if (static_cast<size_t>(end - p) < size)
+        ThrowPlyTruncated(path, vertex, i);
+      if (f.target == Target::kPackedRgb) {
+        StorePackedRgb(
+            swap ? Load<uint32_t, true>(p) : Load<uint32_t, false>(p),
+            out.colors + 3 * i);
+      } else if (f.target != Target::kSkip) {
+        StoreValue(path, f.target, i, LoadNumber(p, f.type, swap), out);
+      }
+      p += size;
+    }
+  }
+  return p;
+}
+
+PointCloud ReadPlyFile(const std::string& path) {
+  const FileBuffer file = ReadWholeFile(path);
+  PlyHeader header = ParsePlyHeader(path, file);
+  const PlyElement& vertex = header.elements[header.vertex];
+  PointCloud cloud;
+  const CloudColumns out = AllocateCloud(static_cast<size_t>(vertex.count),
+                                         vertex.properties, &cloud);
+  const char* p = file.begin() + header.data_offset;
+  const char* end = file.end();
+  if (header.format != PlyFormat::kAscii) {
+    const bool swap = header.format == PlyFormat::kBinaryBigEndian;
+    for (size_t k = 0; k < header.elements.size(); ++k) {
+      if (k == header.vertex) {
+        p = ReadBinaryVertices(path, vertex, p, end, swap, out);
+      } else {
+        p = SkipBinaryElement(path, header.elements[k], p, end, swap);
+      }
+    }
+  } else {
+    LineReader lines(p, end, header.lines);
+    Line line;
+    for (size_t k = 0; k < header.elements.size(); ++k) {
+      const PlyElement& e = header.elements[k];
+      for (uint64_t i = 0; i < e.count; ++i) {
+        if (!lines.Next(&line)) {
+          ThrowInputError(path, "truncated: the file ends after ", i, " of ",
+                          e.count, " '", Excerpt(e.name), "' lines");
+        }
+        if (k == header.vertex) {
+          ParseAsciiRow(path, line, e.properties, "property",
+                        static_cast<size_t>(i), out);
+        }
+      }
+    }
+    if (lines.Next(&line)) {
+      ThrowInputError(path, "line ", line.number,
+                      ": unexpected data after the last element ('",
+                      Excerpt(line.b, line.e), "')");
+    }
+  }
+  ApplyNanPolicy(path, /*drop_nan=*/false, &cloud);
+  return cloud;
+}
+
+// ---------------------------------------------------------------------------
+// PCD.
+
+enum class PcdData { kAscii, kBinary, kBinaryCompressed };
+
+struct PcdHeader {
+  std::vector<FieldSpec> fields;
+  uint64_t width = 0;
+  uint64_t height = 0;
+  PcdData data = PcdData::kAscii;
+  std::string data_name;
+  size_t data_offset = 0;
+  uint64_t lines = 0;
+
+  uint64_t points() const { return width * height; }
+  size_t PointBytes() const {
+    size_t bytes = 0;
+    for (const FieldSpec& f : fields) bytes += f.Bytes();
+    return bytes;
+  }
+};
+
+Scalar PcdScalar(char type, uint64_t size) {
+  if (type == 'F') return size == 4 ? Scalar::kFloat32 : Scalar::kFloat64;
+  const bool is_signed = type == 'I';
+  switch (size) {
+    case 1:
+      return is_signed ? Scalar::kInt8 : Scalar::kUint8;
+    case 2:
+      return is_signed ? Scalar::kInt16 : Scalar::kUint16;
+    case 4:
+      return is_signed ? Scalar::kInt32 : Scalar::kUint32;
+    default:
+      return is_signed ? Scalar::kInt64 : Scalar::kUint64;
   }
 }
 
-std::string FormatFloat(float v) {
+PcdHeader ParsePcdHeader(const std::string& path, const FileBuffer& file) {
+  if (file.size == 0) ThrowInputError(path, "empty file (expected a PCD file)");
+  LineReader lines(file.begin(), file.end(), 0);
+  Line line;
+  auto bad = [&](const std::string& what) {
+    ThrowInputError(path, "malformed PCD header: ", what, " (line ",
+                    line.number, ")");
+  };
+  std::vector<std::string_view> names, sizes, types, counts;
+  bool have_fields = false, have_size = false, have_type = false,
+       have_count = false, have_width = false, have_height = false,
+       have_points = false, have_version = false, have_viewpoint = false;
+  uint64_t points = 0;
+  PcdHeader header;
+  bool have_data = false;
+  while (!have_data) {
+    if (!lines.NextAny(&line)) bad("no DATA line");
+    std::vector<std::string_view> t = Tokens(line);
+    if (t.empty() || t[0][0] == '#') continue;
+    const std::string_view key = t[0];
+    std::vector<std::string_view> values(t.begin() + 1, t.end());
+    auto once = [&](bool* seen) {
+      if (*seen) bad("a second " + std::string(key) + " line");
+      *seen = true;
+    };
+    auto one_count = [&](uint64_t* value) {
+      if (values.size() != 1 || !ParseCount(values[0], 0xffffffffu, value))
+        bad(std::string(key) + " needs one count");
+    };
+    if (key == "VERSION") {
+      once(&have_version);
+      static const char* kVersions[] = {"0.5", "0.6", "0.7", ".5", ".6", ".7"};
+      if (values.size() != 1 ||
+          std::none_of(std::begin(kVersions), std::end(kVersions),
+                       [&](const char* v) { return values[0] == v; })) {
+        bad("unsupported VERSION (0.5, 0.6 and 0.7 are read)");
+      }
+    } else if (key == "FIELDS" || key == "COLUMNS") {
+      once(&have_fields);
+      names = values;
+    } else if (key == "SIZE") {
+      once(&have_size);
+      sizes = values;
+    } else if (key == "TYPE") {
+      once(&have_type);
+      types = values;
+    } else if (key == "COUNT") {
+      once(&have_count);
+      counts = values;
+    } else if (key == "WIDTH") {
+      once(&have_width);
+      one_count(&header.width);
+    } else if (key == "HEIGHT") {
+      once(&have_height);
+      one_count(&header.height);
+    } else if (key == "POINTS") {
+      once(&have_points);
+      one_count(&points);
+    } else if (key == "VIEWPOINT") {
+      once(&have_viewpoint);
+      bool ok = values.size() == 7;
+      for (size_t k = 0; ok && k < values.size(); ++k) {
+        double v;
+        ok = ParseNumber(values[k], Scalar::kFloat64, &v) == Parse::kOk &&
+             std::isfinite(v);
+      }
+      if (!ok) bad("VIEWPOINT needs 7 finite numbers (tx ty tz qw qx qy qz)");
+    } else if (key == "DATA") {
+      if (values.size() != 1) bad("DATA needs one format");
+      header.data_name = std::string(values[0]);
+      if (values[0] == "ascii") {
+        header.data = PcdData::kAscii;
+      } else if (values[0] == "binary") {
+        header.data = PcdData::kBinary;
+      } else if (values[0] == "binary_compressed") {
+        header.data = PcdData::kBinaryCompressed;
+      } else {
+        bad("unknown DATA format '" + Excerpt(values[0]) + "'");
+      }
+      have_data = true;
+    } else {
+      bad("unexpected line '" + Excerpt(line.b, line.e) + "'");
+    }
+  }
+  header.lines = line.number;
+  header.data_offset = static_cast<size_t>(lines.position() - file.begin());
+  if (!have_fields || names.empty()) bad("no FIELDS");
+  const size_t nf = names.size();
+  if ((have_size && sizes.size() != nf) || (have_type && types.size() != nf) ||
+      (have_count && counts.size() != nf)) {
+    bad("FIELDS, SIZE, TYPE and COUNT have different lengths");
+  }
+  for (size_t k = 0; k < nf; ++k) {
+    FieldSpec f;
+    f.name = std::string(names[k]);
+    uint64_t size = 4;
+    if (have_size && (!ParseCount(sizes[k], 8, &size) ||
+                      (size != 1 && size != 2 && size != 4 && size != 8))) {
+      bad("SIZE '" + Excerpt(sizes[k]) + "' of field '" + Excerpt(f.name) +
+          "' (1, 2, 4 or 8)");
+    }
+    char type = 'F';
+    if (have_type) {
+      if (types[k] != "I" && types[k] != "U" && types[k] != "F")
+        bad("TYPE '" + Excerpt(types[k]) + "' (I, U or F)");
+      type = types[k][0];
+    }
+    if (type == 'F' && size != 4 && size != 8)
+      bad("field '" + Excerpt(f.name) + "' is a float of " +
+          std::to_string(size) + " bytes");
+    if (have_count &&
+        (!ParseCount(counts[k], uint64_t{1} << 20, &f.count) || f.count == 0)) {
+      bad("COUNT '" + Excerpt(counts[k]) + "' (1 to 1048576)");
+    }
+    f.type = PcdScalar(type, size);
+    f.type_name = std::string(1, type) + " " + std::to_string(size);
+    header.fields.push_back(std::move(f));
+  }
+  if (!have_width && !have_height) {
+    if (!have_points) bad("no WIDTH, HEIGHT or POINTS");
+    header.width = points;
+    header.height = 1;
+  } else if (!have_width) {
+    bad("HEIGHT without WIDTH");
+  } else if (!have_height) {
+    header.height = 1;
+  }
+  if (have_points && points != header.points()) {
+    bad("POINTS " + std::to_string(points) + " is not WIDTH x HEIGHT (" +
+        std::to_string(header.width) + " x " + std::to_string(header.height) +
+        ")");
+  }
+  if (header.points() > kMaxPointCloudPoints) {
+    ThrowInputError(path, "header declares ", header.points(),
+                    " points, more than the limit of ", kMaxPointCloudPoints);
+  }
+  AssignTargets(path, "field", &header.fields);
+  return header;
+}
+
+PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
+  const FileBuffer file = ReadWholeFile(path);
+  const PcdHeader header = ParsePcdHeader(path, file);
+  const size_t n = static_cast<size_t>(header.points());
+  const size_t point_bytes = header.PointBytes();
+  const char* data = file.begin() + header.data_offset;
+  const uint64_t left = file.size - header.data_offset;
+  PointCloud cloud;
+  std::unique_ptr<char[]> decompressed;
+
+  // Sizes first, allocation after.
+  if (header.data == PcdData::kAscii) {
+    uint64_t values = 0;
+    for (const FieldSpec& f : header.fields) values += f.count;
+    if (n > 0 && n > (left + 1) / (2 * values)) {
+      ThrowInputError(path, "truncated or corrupt: the header declares ", n,
+                      " points of ", values, " values, but only ", left,
+                      " bytes follow the header");
+    }
+  } else if (header.data == PcdData::kBinary) {
+    if (n > 0 && n > left / point_bytes) {
+      ThrowInputError(path, "truncated or corrupt: the header declares ", n,
+                      " points of ", point_bytes, " bytes (", n * point_bytes,
+                      " bytes), but only ", left, " bytes follow the header");
+    }
+  } else if (n > 0) {
+    // PCL's layout: uint32 compressed size, uint32 uncompressed size, LZF
+    // data of the fields one after another (all x, then all y, ...).
+    if (left < 8) {
+      ThrowInputError(path,
+                      "truncated: the compressed block's sizes are "
+                      "missing");
+    }
+    uint32_t compressed = 0, uncompressed = 0;
+    std::memcpy(&compressed, data, 4);
+    std::memcpy(&uncompressed, data + 4, 4);
+    const uint64_t need = uint64_t{n} * point_bytes;
+    if (uncompressed != need) {
+      ThrowInputError(path, "corrupt: the compressed block declares ",
+                      uncompressed, " bytes of points, the header needs ", n,
+                      " x ", point_bytes, " = ", need);
+    }
+    if (compressed > left - 8) {
+      ThrowInputError(path, "truncated: the compressed block declares ",
+                      compressed, " bytes, only ", left - 8,
+                      " bytes follow it");
+    }
+    // LZF expands at most 88x (3 bytes of back-reference copy 264).
+    if (compressed == 0 || uncompressed / 88 > compressed) {
+      ThrowInputError(path, "corrupt: ", compressed,
+                      " bytes of LZF data cannot hold ", uncompressed,
+                      " bytes");
+    }
+    try {
+      decompressed.reset(new char[uncompressed]);
+    } catch (const std::bad_alloc&) {
+      ThrowInputError(path, "cannot allocate ", uncompressed,
+                      " bytes for the decompressed points");
+    }
+    const unsigned int got =
+        lzf_decompress(data + 8, compressed, decompressed.get(), uncompressed);
+    if (got != uncompressed) {
+      ThrowInputError(path, "corrupt LZF data (",
+                      got == 0 ? "invalid" : "short", " stream: ", got, " of ",
+                      uncompressed, " bytes)");
+    }
+  }
+
+  const CloudColumns out = AllocateCloud(n, header.fields, &cloud);
+  if (header.data == PcdData::kAscii) {
+    LineReader lines(data, file.end(), header.lines);
+    Line line;
+    for (size_t i = 0; i < n; ++i) {
+      if (!lines.Next(&line)) {
+        ThrowInputError(path, "truncated: the file ends after ", i, " of ", n,
+                        " points");
+      }
+      ParseAsciiRow(path, line, header.fields, "field", i, out);
+    }
+    if (lines.Next(&line)) {
+      ThrowInputError(path, "line ", line.number,
+                      ": unexpected data after the last point ('",
+                      Excerpt(line.b, line.e), "')");
+    }
+  } else if (n > 0) {
+    std::vector<Column> columns;
+    size_t offset = 0;
+    for (const FieldSpec& f : header.fields) {
+      if (f.target != Target::kSkip) {
+        // binary: point-major records; binary_compressed: field-major.
+        columns.push_back(header.data == PcdData::kBinary
+                              ? Column{data + offset, point_bytes, f.target,
+                                       ColumnFunctionFor<false>(f.type)}
+                              : Column{decompressed.get() + n * offset,
+                                       f.Bytes(), f.target,
+                                       ColumnFunctionFor<false>(f.type)});
+      }
+      offset += f.Bytes();
+    }
+    ConvertColumns(path, columns, n, out);
+  }
+  const uint64_t dropped =
+      ApplyNanPolicy(path, /*drop_nan=*/header.height > 1, &cloud);
+  if (summary) {
+    summary->width = header.width;
+    summary->height = header.height;
+    summary->data = header.data_name;
+    summary->dropped_nan_points = dropped;
+  }
+  return cloud;
+}
+
+// ---------------------------------------------------------------------------
+// Writers.
+
+// %.9g (round-trips float32), as the writers have always written floats.
+inline void AppendFloat(float v, std::string* out) {
   char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.9g",
-                static_cast<double>(v));  // round-trips float32
-  return buf;
+  const auto r =
+      std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 9);
+  out->append(buf, r.ptr);
+}
+
+template <typename Int>
+inline void AppendInt(Int v, std::string* out) {
+  char buf[24];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  out->append(buf, r.ptr);
+}
+
+uint32_t PackRgb(const Color3u8& c) {
+  return (uint32_t{c[0]} << 16) | (uint32_t{c[1]} << 8) | uint32_t{c[2]};
+}
+
+// The fields both writers emit, in order.
+struct OutField {
+  enum Kind { kXyz, kColor, kConfidence, kInstanceId, kIntensity, kRing };
+  Kind kind;
+  size_t bytes;
+};
+
+// PLY: colour as 3 uchar, then confidence, instance_id, intensity, ring. PCD
+// (the order of the PCL-based writer before): colour packed in a uint32, then
+// intensity, confidence, instance_id, ring.
+std::vector<OutField> OutFields(const PointCloud& cloud, bool pcd) {
+  std::vector<OutField> fields = {{OutField::kXyz, 12}};
+  if (cloud.HasColors()) fields.push_back({OutField::kColor, pcd ? 4u : 3u});
+  if (pcd && cloud.HasIntensity()) fields.push_back({OutField::kIntensity, 4});
+  if (cloud.HasConfidence()) fields.push_back({OutField::kConfidence, 4});
+  if (cloud.HasInstanceIds()) fields.push_back({OutField::kInstanceId, 4});
+  if (!pcd && cloud.HasIntensity()) fields.push_back({OutField::kIntensity, 4});
+  if (cloud.HasRing()) fields.push_back({OutField::kRing, 4});
+  return fields;
+}
+
+// Point-major binary records of OutFields(cloud, pcd).
+void AppendBinaryRecords(const PointCloud& cloud, bool pcd, std::string* out) {
+  const std::vector<OutField> fields = OutFields(cloud, pcd);
+  size_t record = 0;
+  for (const OutField& f : fields) record += f.bytes;
+  const size_t start = out->size();
+  out->resize(start + record * cloud.size());
+  char* p = out->data() + start;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    for (const OutField& f : fields) {
+      switch (f.kind) {
+        case OutField::kXyz:
+          std::memcpy(p, cloud.positions[i].data(), 12);
+          break;
+        case OutField::kColor:
+          if (pcd) {
+            const uint32_t rgb = PackRgb(cloud.colors[i]);
+            std::memcpy(p, &rgb, 4);
+          } else {
+            std::memcpy(p, cloud.colors[i].data(), 3);
+          }
+          break;
+        case OutField::kConfidence:
+          std::memcpy(p, &cloud.confidence[i], 4);
+          break;
+        case OutField::kInstanceId:
+          std::memcpy(p, &cloud.instance_ids[i], 4);
+          break;
+        case OutField::kIntensity:
+          std::memcpy(p, &cloud.intensity[i], 4);
+          break;
+        case OutField::kRing:
+          std::memcpy(p, &cloud.ring[i], 4);
+          break;
+      }
+      p += f.bytes;
+    }
+  }
+}
+
+// One ASCII line per point of OutFields(cloud, pcd), values separated by one
+// space.
+void AppendAsciiRecords(const PointCloud& cloud, bool pcd, std::string* out) {
+  const std::vector<OutField> fields = OutFields(cloud, pcd);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    for (const OutField& f : fields) {
+      switch (f.kind) {
+        case OutField::kXyz:
+          AppendFloat(cloud.positions[i].x(), out);
+          *out += ' ';
+          AppendFloat(cloud.positions[i].y(), out);
+          *out += ' ';
+          AppendFloat(cloud.positions[i].z(), out);
+          break;
+        case OutField::kColor:
+          if (pcd) {
+            *out += ' ';
+            AppendInt(PackRgb(cloud.colors[i]), out);
+          } else {
+            for (int k = 0; k < 3; ++k) {
+              *out += ' ';
+              AppendInt(int{cloud.colors[i][k]}, out);
+            }
+          }
+          break;
+        case OutField::kConfidence:
+          *out += ' ';
+          AppendFloat(cloud.confidence[i], out);
+          break;
+        case OutField::kInstanceId:
+          *out += ' ';
+          AppendInt(cloud.instance_ids[i], out);
+          break;
+        case OutField::kIntensity:
+          *out += ' ';
+          AppendFloat(cloud.intensity[i], out);
+          break;
+        case OutField::kRing:
+          *out += ' ';
+          AppendFloat(cloud.ring[i], out);
+          break;
+      }
+    }
+    *out += '\n';
+  }
 }
 
 }  // namespace
 
 PointCloud ReadNuscenesLidarBin(const std::string& path) {
-  const std::vector<float> v =
-      ReadFloatRecords(path, 5, "float32 x 5 per point: x y z intensity ring");
-  PointCloud cloud;
-  const size_t n = v.size() / 5;
-  cloud.Reserve(n);
-  cloud.intensity.reserve(n);
-  cloud.ring.reserve(n);
-  for (size_t i = 0; i < n; ++i) {
-    cloud.positions.emplace_back(v[5 * i], v[5 * i + 1], v[5 * i + 2]);
-    cloud.intensity.push_back(v[5 * i + 3]);
-    cloud.ring.push_back(v[5 * i + 4]);
-  }
-  return cloud;
+  return ReadFloatRecords(path, 5,
+                          "float32 x 5 per point: x y z intensity ring");
 }
 
 void WriteNuscenesLidarBin(const std::string& path, const PointCloud& cloud) {
@@ -294,44 +1625,14 @@ void WriteNuscenesLidarBin(const std::string& path, const PointCloud& cloud) {
 }
 
 PointCloud ReadKittiVelodyneBin(const std::string& path) {
-  const std::vector<float> v =
-      ReadFloatRecords(path, 4, "float32 x 4 per point: x y z reflectance");
-  PointCloud cloud;
-  const size_t n = v.size() / 4;
-  cloud.Reserve(n);
-  cloud.intensity.reserve(n);
-  for (size_t i = 0; i < n; ++i) {
-    cloud.positions.emplace_back(v[4 * i], v[4 * i + 1], v[4 * i + 2]);
-    cloud.intensity.push_back(v[4 * i + 3]);
-  }
-  return cloud;
+  return ReadFloatRecords(path, 4, "float32 x 4 per point: x y z reflectance");
 }
 
 void WriteKittiVelodyneBin(const std::string& path, const PointCloud& cloud) {
   WriteFloatRecords(path, cloud, /*with_ring=*/false);
 }
 
-PointCloud ReadPly(const std::string& path) {
-  CheckPly(path);
-  pcl::PCLPointCloud2 cloud2;
-  int status = -1;
-  {
-    internal::PclQuietGuard quiet;
-    try {
-      pcl::PLYReader reader;
-      Eigen::Vector4f origin;
-      Eigen::Quaternionf orientation;
-      int ply_version = 0;
-      status = reader.read(path, cloud2, origin, orientation, ply_version, 0);
-    } catch (const std::exception& e) {
-      ThrowInputError(path, "malformed PLY file (", e.what(), ")");
-    }
-  }
-  if (status < 0)
-    ThrowInputError(path,
-                    "malformed or truncated PLY file (PCL could not parse it)");
-  return internal::FromPclPointCloud2(cloud2, path);
-}
+PointCloud ReadPly(const std::string& path) { return ReadPlyFile(path); }
 
 void WritePly(const std::string& path, const PointCloud& cloud, bool binary) {
   cloud.Check(path);
@@ -347,88 +1648,52 @@ void WritePly(const std::string& path, const PointCloud& cloud, bool binary) {
   if (cloud.HasIntensity()) out += "property float intensity\n";
   if (cloud.HasRing()) out += "property float ring\n";
   out += "end_header\n";
-  auto put = [&out](const void* p, size_t n) {
-    out.append(static_cast<const char*>(p), n);
-  };
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (binary) {
-      put(cloud.positions[i].data(), 12);
-      if (cloud.HasColors()) put(cloud.colors[i].data(), 3);
-      if (cloud.HasConfidence()) put(&cloud.confidence[i], 4);
-      if (cloud.HasInstanceIds()) put(&cloud.instance_ids[i], 4);
-      if (cloud.HasIntensity()) put(&cloud.intensity[i], 4);
-      if (cloud.HasRing()) put(&cloud.ring[i], 4);
-    } else {
-      std::string line = FormatFloat(cloud.positions[i].x()) + " " +
-                         FormatFloat(cloud.positions[i].y()) + " " +
-                         FormatFloat(cloud.positions[i].z());
-      if (cloud.HasColors()) {
-        for (int k = 0; k < 3; ++k)
-          line += " " + std::to_string(int{cloud.colors[i][k]});
-      }
-      if (cloud.HasConfidence()) line += " " + FormatFloat(cloud.confidence[i]);
-      if (cloud.HasInstanceIds())
-        line += " " + std::to_string(cloud.instance_ids[i]);
-      if (cloud.HasIntensity()) line += " " + FormatFloat(cloud.intensity[i]);
-      if (cloud.HasRing()) line += " " + FormatFloat(cloud.ring[i]);
-      out += line + "\n";
-    }
+  if (binary) {
+    AppendBinaryRecords(cloud, /*pcd=*/false, &out);
+  } else {
+    AppendAsciiRecords(cloud, /*pcd=*/false, &out);
   }
   WriteFileAtomic(path, out);
 }
 
 PointCloud ReadPcd(const std::string& path) {
-  CheckPcdHeader(path);
-  pcl::PCLPointCloud2 cloud2;
-  int status = -1;
-  {
-    internal::PclQuietGuard quiet;
-    try {
-      pcl::PCDReader reader;
-      status = reader.read(path, cloud2);
-    } catch (const std::exception& e) {
-      ThrowInputError(path, "malformed PCD file (", e.what(), ")");
-    }
-  }
-  if (status < 0)
-    ThrowInputError(path,
-                    "malformed or truncated PCD file (PCL could not parse it)");
-  return internal::FromPclPointCloud2(cloud2, path);
+  return ReadPcdFile(path, nullptr);
+}
+
+PointCloud ReadPcd(const std::string& path, PcdReadSummary* summary) {
+  return ReadPcdFile(path, summary);
 }
 
 void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
   cloud.Check(path);
-  const pcl::PCLPointCloud2 cloud2 = internal::ToPclPointCloud2(cloud);
-  WriteViaTemporary(path, ".pcd", [&](const std::string& tmp) {
-    internal::PclQuietGuard quiet;
-    pcl::PCDWriter writer;
-    if (cloud.empty()) {
-      // PCL refuses to write clouds without data; an empty PCD is just the
-      // header.
-      std::string header = writer.generateHeaderASCII(
-          cloud2, Eigen::Vector4f::Zero(), Eigen::Quaternionf::Identity());
-      header += "DATA ascii\n";
-      WriteFileAtomic(tmp, header);
-      return true;
-    }
-    if (!binary) {
-      return writer.writeASCII(tmp, cloud2, Eigen::Vector4f::Zero(),
-                               Eigen::Quaternionf::Identity(), 9) == 0;
-    }
-    if (writer.writeBinary(tmp, cloud2) != 0) return false;
-    // PCL 1.13 over-allocates binary files by up to a page of trailing zeros;
-    // trim them.
-    const std::string header =
-        writer.generateHeaderBinary(cloud2, Eigen::Vector4f::Zero(),
-                                    Eigen::Quaternionf::Identity()) +
-        "DATA binary\n";
-    std::error_code ec;
-    const uint64_t want = header.size() + cloud2.data.size();
-    if (std::filesystem::file_size(tmp, ec) > want && !ec) {
-      std::filesystem::resize_file(tmp, want, ec);
-    }
-    return !ec;
-  });
+  std::string fields = "x y z", sizes = "4 4 4", types = "F F F",
+              counts = "1 1 1";
+  auto add = [&](const char* name, const char* type) {
+    fields += std::string(" ") + name;
+    sizes += " 4";
+    types += std::string(" ") + type;
+    counts += " 1";
+  };
+  if (cloud.HasColors()) add("rgb", "F");
+  if (cloud.HasIntensity()) add("intensity", "F");
+  if (cloud.HasConfidence()) add("confidence", "F");
+  if (cloud.HasInstanceIds()) add("instance_id", "I");
+  if (cloud.HasRing()) add("ring", "F");
+  const std::string n = std::to_string(cloud.size());
+  // An empty cloud is written as ASCII, as PCL does not write empty binary
+  // files.
+  binary = binary && !cloud.empty();
+  std::string out = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n";
+  out += "FIELDS " + fields + "\nSIZE " + sizes + "\nTYPE " + types +
+         "\nCOUNT " + counts + "\nWIDTH " + n +
+         "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\n";
+  out += binary ? "DATA binary\n" : "DATA ascii\n";
+  if (binary) {
+    AppendBinaryRecords(cloud, /*pcd=*/true, &out);
+  } else {
+    AppendAsciiRecords(cloud, /*pcd=*/true, &out);
+  }
+  WriteFileAtomic(path, out);
 }
 
 PointCloud ReadPointCloud(const std::string& path) {
@@ -446,10 +1711,8 @@ void WritePointCloud(const std::string& path, const PointCloud& cloud) {
   const std::string name = LowerFileName(path);
   if (EndsWith(name, ".ply")) return WritePly(path, cloud);
   if (EndsWith(name, ".pcd")) return WritePcd(path, cloud);
-  if (EndsWith(name, ".pcd.bin"))
-    return WriteNuscenesLidarBin(path, cloud);
-  if (EndsWith(name, ".bin"))
-    return WriteKittiVelodyneBin(path, cloud);
+  if (EndsWith(name, ".pcd.bin")) return WriteNuscenesLidarBin(path, cloud);
+  if (EndsWith(name, ".bin")) return WriteKittiVelodyneBin(path, cloud);
   ThrowInputError(
       path,
       "unknown point cloud format (expected .ply, .pcd, .pcd.bin or .bin)");
