@@ -1,28 +1,56 @@
 #pragma once
-// Images through OpenCV (PNG, JPEG). Errors name the file: missing, not an
-// image, truncated (a JPEG without its end-of-image marker or a PNG without
-// IEND is refused, although libjpeg would decode it with a grey bottom). Writes
-// are atomic (temporary file + rename).
+// PNG and JPEG reading and writing through the codec libraries themselves:
+// libjpeg-turbo's TurboJPEG API and libspng (no OpenCV imgcodecs). Pixels are
+// identical to what cv::imdecode returns for the same file and flags (OpenCV
+// 4.6, same libjpeg-turbo), EXIF orientation included. Hardened: the header is
+// checked against ImageReadLimits before any pixel memory is allocated; a JPEG
+// that libjpeg decodes only "with warnings" (corrupt or missing scan data), a
+// truncated file and a PNG chunk with a bad CRC are errors. Every failure is
+// one InputError naming the file; the libraries print nothing. Writes are
+// atomic (temporary file + rename) and deterministic.
 
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
 
 namespace geodrive {
 
+// The largest image the readers accept, checked on the header (JPEG SOF, PNG
+// IHDR) before any pixel memory is allocated. A 16384 x 16384 RGB image
+// decodes to 768 MiB; 2^28 pixels bound a 16-bit RGBA decode to 2 GiB.
+struct ImageReadLimits {
+  static constexpr int kMaxSide = 16384;                   // pixels per side
+  static constexpr int64_t kMaxPixels = int64_t{1} << 28;  // width * height
+};
+
 // Reads an 8-bit image as RGB (3 channels, CV_8UC3) -- note: RGB, not OpenCV's
-// BGR.
+// BGR. Alpha is dropped, 16-bit samples keep their high byte, gray is
+// replicated, EXIF orientation is applied (as cv::IMREAD_COLOR).
 cv::Mat ReadImageRgb(const std::string& path);
-// Reads a single-channel 8-bit image (e.g. a mask) as CV_8UC1.
+// Reads a single-channel 8-bit image (e.g. a mask) as CV_8UC1, EXIF
+// orientation applied (as cv::IMREAD_GRAYSCALE).
 cv::Mat ReadImageGray(const std::string& path);
-// Reads an image unchanged (any depth/channels), BGR order as OpenCV stores it.
+// Reads an image unchanged (8- or 16-bit; 1, 3 or 4 channels), BGR/BGRA order
+// as OpenCV stores it, EXIF orientation not applied (as cv::IMREAD_UNCHANGED).
 cv::Mat ReadImageUnchanged(const std::string& path);
-// Writes an RGB CV_8UC3 (or CV_8UC1) image; the format follows the extension.
-// PNG writes are deterministic (fixed compression level).
+// Reads as ReadImageRgb, but decodes a JPEG at the smallest of the scales 1/8,
+// 1/4, 1/2 and 1 (libjpeg's DCT scaling, much faster than decoding then
+// resizing) whose output is still at least min_width x min_height (after EXIF
+// orientation); same pixels as cv::IMREAD_REDUCED_COLOR_{2,4,8}. PNGs are read
+// at full size.
+cv::Mat ReadImageRgbScaled(const std::string& path,
+                           int min_width,
+                           int min_height);
+
+// Writes an RGB CV_8UC3 image (also RGBA CV_8UC4, gray CV_8UC1 and, PNG only,
+// 16-bit gray CV_16UC1); the format follows the extension (.png, .jpg/.jpeg).
+// PNG: libspng, compression level 3, deterministic, exact round trip. JPEG:
+// TurboJPEG, quality 95, 4:2:0 (gray stays gray, alpha is dropped).
 void WriteImageRgb(const std::string& path, const cv::Mat& rgb);
 
-// Size of the image ReadImageRgb would return, without decoding the pixels when
-// possible (PNG, and JPEG without EXIF; a JPEG with EXIF is decoded so that its
-// orientation is applied).
+// Size of the image ReadImageRgb would return, from the header alone (JPEG SOF
+// and EXIF orientation, PNG IHDR and eXIf): nothing is decoded. Truncated files
+// and images over ImageReadLimits are errors, as for the readers.
 cv::Size ReadImageSize(const std::string& path);
 
 }  // namespace geodrive
