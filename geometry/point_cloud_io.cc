@@ -1674,7 +1674,9 @@ void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
     types += std::string(" ") + type;
     counts += " 1";
   };
-  if (cloud.HasColors()) add("rgb", "F");
+  // PCL 1.13 declares rgb as F in binary files and, as it writes the uint32
+  // as an integer there, as U in ASCII ones.
+  if (cloud.HasColors()) add("rgb", binary && !cloud.empty() ? "F" : "U");
   if (cloud.HasIntensity()) add("intensity", "F");
   if (cloud.HasConfidence()) add("confidence", "F");
   if (cloud.HasInstanceIds()) add("instance_id", "I");

@@ -78,11 +78,12 @@ struct PcdReadSummary {
 // applied. Trailing bytes after binary data are ignored (older PCL pads).
 PointCloud ReadPcd(const std::string& path);
 PointCloud ReadPcd(const std::string& path, PcdReadSummary* summary);
-// The header PCL writes (VERSION 0.7, VIEWPOINT 0 0 0 1 0 0 0) with fields x y
-// z (F 4), rgb (F 4, packed), intensity (F 4), confidence (F 4), instance_id
-// (I 4), ring (F 4) for the attributes the cloud has; DATA binary, or ascii
-// (floats as %.9g, rgb as its uint32 like PCL 1.13). An empty cloud is written
-// as DATA ascii. Deterministic and atomic.
+// The files PCL 1.13 writes (byte for byte, less PCL's trailing zero padding
+// of binary files): VERSION 0.7, VIEWPOINT 0 0 0 1 0 0 0, fields x y z (F 4),
+// rgb (packed 0x00RRGGBB; F 4 in binary, U 4 and an integer in ASCII),
+// intensity (F 4), confidence (F 4), instance_id (I 4), ring (F 4) for the
+// attributes the cloud has; DATA binary, or ascii (floats as %.9g). An empty
+// cloud is written as DATA ascii. Deterministic and atomic.
 void WritePcd(const std::string& path,
               const PointCloud& cloud,
               bool binary = true);

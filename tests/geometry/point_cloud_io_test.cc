@@ -907,7 +907,7 @@ TEST(Pcd, WritesPclHeaderLayout) {
   WritePcd(path, cloud, /*binary=*/false);
   EXPECT_EQ(ReadAll(path),
             "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS "
-            "x y z rgb intensity\nSIZE 4 4 4 4 4\nTYPE F F F F F\nCOUNT 1 1 1 "
+            "x y z rgb intensity\nSIZE 4 4 4 4 4\nTYPE F F F U F\nCOUNT 1 1 1 "
             "1 1\nWIDTH 1\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA "
             "ascii\n0.100000001 -2 2.99999992e-05 66051 7.5\n");
   WritePcd(path, cloud);
@@ -1053,14 +1053,7 @@ print('open3d', o3d.__version__, 'wrote 5 files and read', len(names))
       }
     }
     EXPECT_EQ(xyz_mismatches, 0);
-    // ASCII PCD stores rgb as the text of its uint32 since PCL 1.13 (as we
-    // write it); Open3D 0.16 parses that text as a float, so its colours of
-    // ours_a.pcd are wrong (ours read Open3D's float-text rgb correctly).
-    if (std::string(name) == "ours_a.pcd") {
-      EXPECT_GT(rgb_mismatches, 0);
-    } else {
-      EXPECT_EQ(rgb_mismatches, 0);
-    }
+    EXPECT_EQ(rgb_mismatches, 0);
     if (std::string(name).rfind("ours", 0) == 0) ExpectSameCloud(ours, cloud);
   }
   std::cout << out;
