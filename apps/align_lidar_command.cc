@@ -27,6 +27,7 @@ struct Args {
 };
 
 int Run(const Args& a) {
+  CreateOutputDirectory(a.out);  // an unusable --out fails before the fit
   DriveDatasetOptions dso;
   dso.root = a.dataroot;
   dso.version = a.version;
@@ -45,7 +46,6 @@ int Run(const Args& a) {
   options.max_time_gap_s = a.max_gap_ms * 1e-3;
   options.alignment = ParseAlignmentType(a.alignment);
   const ClipScaleReport report = FitClipLidarScale(clip, folder, options);
-  std::filesystem::create_directories(a.out);
   WriteFileAtomic(a.out + "/report.json", ClipScaleReportToJson(report));
   // The residual picture of the frame with the most LiDAR samples.
   int best = -1;

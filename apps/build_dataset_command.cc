@@ -169,7 +169,8 @@ CommandRunner Setup(CLI::App& app) {
   sources.push_back("auto");
   app.add_option("--geometry", o.geometry, source_help)
       ->check(CLI::IsMember(sources));
-  app.add_option("--threads", o.threads, "Clips processed in parallel")
+  app.add_option("--threads", o.threads, "Clips processed in parallel (1..256)")
+      ->check(ThreadCountValidator() & CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--shard", a->shard,
                  "Process shard i of N (i/N), e.g. for Slurm job arrays")

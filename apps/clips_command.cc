@@ -109,13 +109,13 @@ void LinkImages(const DriveClip& clip, const std::string& dir, bool copy) {
 
 int RunClips(ClipsArgs& a) {
   a.dataset.frames = ParseClipFrameSource(a.frames);
+  CreateOutputDirectory(a.out);  // an unusable --out fails first
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(a.dataset);
   std::cerr << "clips: " << dataset->Describe() << "\n";
   std::vector<std::string> wanted;
   std::stringstream ss(a.clips);
   for (std::string id; std::getline(ss, id, ',');)
     if (!id.empty()) wanted.push_back(id);
-  fs::create_directories(a.out);
   std::string index_text, failures_text;
   int written = 0, failed = 0;
   const std::vector<std::string>& ids = dataset->ClipIds();

@@ -18,6 +18,7 @@
 #include "eval/report.h"
 #include "eval/trajectory_metrics.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 #include "render/video/video_io.h"
 
@@ -194,6 +195,14 @@ int RunEval(const EvalArgs& args) {
   GEODRIVE_CHECK_INPUT(!fvd || !args.fvd_model.empty(),
                        "--metrics fvd needs --fvd-model (a TorchScript I3D, "
                        "docs/EVAL.md)");
+  // An unusable output folder fails now, not after every metric is computed.
+  {
+    const std::filesystem::path parent =
+        std::filesystem::path(args.out).parent_path();
+    CreateOutputDirectory(parent.empty() ? "." : parent.string());
+    GEODRIVE_CHECK_INPUT(!std::filesystem::is_directory(args.out), args.out,
+                         ": is a folder (--out names the report.json file)");
+  }
   // Load the models first: a bad model file fails before any video is read.
   std::unique_ptr<LpipsModel> lpips_net;
   std::unique_ptr<FeatureExtractor> fid_net, fvd_net;
@@ -339,7 +348,7 @@ CommandRunner SetupEval(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--threads", args->threads,
                  "Threads for frame metrics (0 = all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(ThreadCountValidator());
   app.add_option("--out", args->out,
                  "report.json (also writes .csv, .md and .png beside it)")
       ->required();

@@ -10,6 +10,7 @@
 #include "geometry/npy.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -62,15 +63,21 @@ int RunInfo(const std::string& path, const std::string& format) {
                        ": is a directory (expected a file)");
   const std::string name = std::filesystem::path(path).filename().string();
   if (EndsWith(name, ".npy")) {
+    // The header only, and the file size against the data it declares:
+    // describing a 4 GB array does not read it.
     const NpyHeader h = ReadNpyHeader(path);
-    const NpyArray a = ReadNpy(path);  // validates the data too
+    const uint64_t have = FileSizeOrThrow(path) - h.data_offset;
+    const uint64_t need =
+        static_cast<uint64_t>(h.NumElements()) * NpyDtypeSize(h.dtype);
+    GEODRIVE_CHECK_INPUT(have >= need, path, ": truncated: header says ", need,
+                         " bytes of data, file has ", have);
     std::cout << path << ": npy v" << h.major_version << "." << h.minor_version
               << ", dtype "
               << (h.big_endian ? ">" + NpyDtypeDescr(h.dtype).substr(1)
                                : NpyDtypeDescr(h.dtype))
               << ", shape " << ShapeString(h.shape) << ", "
               << (h.fortran_order ? "Fortran" : "C") << " order, "
-              << a.NumElements() << " elements\n";
+              << h.NumElements() << " elements\n";
     return kExitOk;
   }
   if (EndsWith(name, ".pcd.bin")) {

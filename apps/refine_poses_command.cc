@@ -174,7 +174,9 @@ CommandRunner SetupRefine(CLI::App& app) {
   app.add_option("--smooth-rotation", a->options.smoothness_rotation_weight,
                  "Joint: weight of the relative-rotation change (per radian)")
       ->capture_default_str();
-  app.add_option("--threads", a->options.num_threads, "Threads")
+  app.add_option("--threads", a->options.num_threads,
+                 "Threads (1..256; one frame pair per thread)")
+      ->check(ThreadCountValidator() & CLI::PositiveNumber)
       ->capture_default_str();
   return [a] { return RunRefine(*a); };
 }

@@ -17,7 +17,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <limits>
@@ -25,6 +24,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <thread>
 #include <sstream>
 
 #include "apps/cli/cli.h"
@@ -33,6 +33,8 @@
 #include "geometry/image_io.h"
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
+#include "geometry/util/files.h"
+#include "geometry/util/memory.h"
 #include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
@@ -100,7 +102,9 @@ struct RenderInput {
   PinholeCamera camera;
   std::string units = "unknown";
   cv::Mat real_frame0;
-  std::vector<cv::Mat> ground_truth;
+  // The scene's own frames (MonST3R's RGB), read one at a time when the
+  // contact sheet is made.
+  std::vector<std::string> ground_truth_paths;
 };
 
 RenderInput LoadRenderInput(const RenderArgs& a, const RenderOptions& options) {
@@ -148,8 +152,7 @@ RenderInput LoadRenderInput(const RenderArgs& a, const RenderOptions& options) {
   r.real_frame0 = scene.frame0_rgb;
   if (a.trajectory.empty()) {
     r.trajectory = scene.trajectory;
-    for (const std::string& path : scene.frame_image_paths)
-      r.ground_truth.push_back(ReadImageRgb(path));
+    r.ground_truth_paths = scene.frame_image_paths;
   } else {
     r.trajectory = scene.PlaceTrajectory(r.trajectory);
   }
@@ -163,6 +166,13 @@ RenderInput LoadRenderInput(const RenderArgs& a, const RenderOptions& options) {
   return r;
 }
 
+// What render.json keeps of one frame (the frames themselves are streamed to
+// the outputs and dropped).
+struct FrameStats {
+  double coverage = 0;
+  int64_t num_valid = 0, num_filled = 0, num_projected = 0;
+};
+
 // render.json: inputs, options, camera, per-frame coverage, summary.
 json RenderReport(const RenderArgs& a,
                   const RenderInput& in,
@@ -170,8 +180,9 @@ json RenderReport(const RenderArgs& a,
                   RenderPreset preset,
                   const RenderOptions& options,
                   bool frame0_replaced,
-                  const RenderResult& result,
-                  const std::vector<cv::Mat>& frames,
+                  const std::vector<FrameStats>& stats,
+                  const RenderSummary& summary,
+                  cv::Size output_size,
                   const json& dynamic_edit,
                   json report) {
   const PinholeCamera& camera = in.camera;
@@ -202,25 +213,105 @@ json RenderReport(const RenderArgs& a,
                       {"cx", camera.cx},       {"cy", camera.cy},
                       {"width", camera.width}, {"height", camera.height}};
   report["num_points"] = in.scene.cloud.size();
-  report["output_size"] = {{"width", frames[0].cols},
-                           {"height", frames[0].rows}};
+  report["output_size"] = {{"width", output_size.width},
+                           {"height", output_size.height}};
   json per_frame = json::array();
-  for (size_t f = 0; f < result.frames.size(); ++f) {
-    const RenderedFrame& fr = result.frames[f];
+  for (size_t f = 0; f < stats.size(); ++f) {
+    const FrameStats& fr = stats[f];
     per_frame.push_back({{"frame", f},
                          {"t", edited.timestamps[f]},
-                         {"coverage", fr.coverage()},
+                         {"coverage", fr.coverage},
                          {"valid_pixels", fr.num_valid},
                          {"filled_pixels", fr.num_filled},
                          {"points_in_view", fr.num_projected}});
   }
   report["frames"] = per_frame;
-  report["summary"] = {{"mean_coverage", result.summary.mean_coverage},
-                       {"min_coverage", result.summary.min_coverage},
-                       {"max_coverage", result.summary.max_coverage},
-                       {"all_invalid_frames", result.summary.empty_frames},
-                       {"seconds", result.summary.seconds}};
+  report["summary"] = {{"mean_coverage", summary.mean_coverage},
+                       {"min_coverage", summary.min_coverage},
+                       {"max_coverage", summary.max_coverage},
+                       {"all_invalid_frames", summary.empty_frames},
+                       {"seconds", summary.seconds}};
   return report;
+}
+
+// Frames drawn on contact_sheet.png: all of a clip up to this many, else this
+// many evenly spaced (a 3000-frame sheet would be a 100-megapixel PNG).
+constexpr int kMaxContactSheetFrames = 100;
+
+// How many frames the render holds at once, and with how many threads, so
+// that the job fits in the memory this process may use (AvailableMemoryBytes):
+// throws InputError when not even one frame on one thread fits. Streaming
+// renders hold a chunk of frames; dynamic editing holds the whole clip.
+struct RenderMemoryPlan {
+  int chunk = 1;
+  int threads = 1;
+};
+RenderMemoryPlan PlanRenderMemory(const RenderOptions& options,
+                                  RenderPreset preset, int64_t num_points,
+                                  int num_frames, int requested_threads,
+                                  bool whole_clip) {
+  const int factor = PresetUpsampleFactor(preset);
+  // A final (upsampled) RGB frame, and the encoder's padded copy and YUV.
+  const uint64_t final_bytes = uint64_t{3} * options.width * factor *
+                               options.height * factor;
+  auto need = [&](int chunk, int threads) {
+    return EstimateRenderBytes(options, num_points, chunk, threads) +
+           static_cast<uint64_t>(chunk) * final_bytes + 3 * final_bytes;
+  };
+  const uint64_t available = AvailableMemoryBytes();
+  const uint64_t budget = available == UINT64_MAX ? available
+                                                  : available / 10 * 8;
+  const int hw = static_cast<int>(
+      std::max(1u, std::thread::hardware_concurrency()));
+  RenderMemoryPlan plan;
+  plan.threads = std::min(requested_threads > 0 ? requested_threads : hw,
+                          num_frames);
+  auto gib = [](uint64_t b) { return Fixed(b / double(1ull << 30), 2); };
+  if (whole_clip) {
+    plan.chunk = num_frames;
+    while (plan.threads > 1 && need(plan.chunk, plan.threads) > budget)
+      --plan.threads;
+    GEODRIVE_CHECK_INPUT(
+        need(plan.chunk, plan.threads) <= budget, "render: dynamic editing "
+        "holds all ", num_frames, " frames of ", options.width, "x",
+        options.height, ": about ", gib(need(plan.chunk, 1)),
+        " GiB, more than the ", gib(budget),
+        " GiB this process may use (fewer frames or a smaller --size)");
+    return plan;
+  }
+  plan.chunk = std::min(num_frames, std::max(8, 2 * plan.threads));
+  while (plan.chunk > 1 && need(plan.chunk, plan.threads) > budget) {
+    plan.chunk = std::max(1, plan.chunk / 2);
+    plan.threads = std::min(plan.threads, plan.chunk);
+  }
+  while (plan.threads > 1 && need(plan.chunk, plan.threads) > budget)
+    --plan.threads;
+  GEODRIVE_CHECK_INPUT(need(1, 1) <= budget, "render: one ", options.width,
+                       "x", options.height, " ", ToString(options.mode),
+                       " frame from ", num_points, " points needs about ",
+                       gib(need(1, 1)), " GiB, more than the ", gib(budget),
+                       " GiB this process may use (a smaller --size)");
+  return plan;
+}
+
+// Accumulates per-frame statistics into the summary RenderFrames gives.
+void AddToSummary(const RenderedFrame& frame, int index,
+                  RenderSummary* summary, std::vector<FrameStats>* stats) {
+  FrameStats s;
+  s.coverage = frame.coverage();
+  s.num_valid = frame.num_valid;
+  s.num_filled = frame.num_filled;
+  s.num_projected = frame.num_projected;
+  stats->push_back(s);
+  if (summary->num_frames == 0) {
+    summary->min_coverage = 1.0;
+    summary->max_coverage = 0.0;
+  }
+  ++summary->num_frames;
+  summary->mean_coverage += s.coverage;  // a sum until the end
+  summary->min_coverage = std::min(summary->min_coverage, s.coverage);
+  summary->max_coverage = std::max(summary->max_coverage, s.coverage);
+  if (frame.num_valid == 0) summary->empty_frames.push_back(index);
 }
 
 int RunRender(RenderArgs a) {
@@ -238,105 +329,150 @@ int RunRender(RenderArgs a) {
       !a.trajectory.empty() || !a.monst3r.empty(),
       "--trajectory is required (except with --monst3r, which defaults to "
       "its pred_traj.txt)");
-  const RenderPreset preset = ParseRenderPreset(a.preset);
-  const RenderOptions options = RenderOptionsFromArgs(a, preset);
-  a.edits.forward_then_back = a.reverse;
-  a.edits.Check();
-
-  const RenderInput in = LoadRenderInput(a, options);
-  const PointCloud& cloud = in.scene.cloud;
-  const PinholeCamera& camera = in.camera;
-  cv::Mat real_frame0 = in.real_frame0;
-  std::vector<cv::Mat> ground_truth = in.ground_truth;
-
-  const Trajectory edited = ApplyTrajectoryEdits(in.trajectory, a.edits);
-  if (edited.size() != ground_truth.size() || a.edits.Describe() != "none")
-    ground_truth.clear();
-  std::vector<Rigid3d> cam_from_world;
-  for (const auto& pose : edited.world_from_cam)
-    cam_from_world.push_back(pose.Inverse());
-
-  // ---- Render ----
-  if (!a.real_frame0.empty()) real_frame0 = ReadImageRgb(a.real_frame0);
   GEODRIVE_CHECK_INPUT(!a.dynamic.boxes_path.empty() ||
                            (a.dynamic.remove.empty() &&
                             a.dynamic.insert.empty() && a.dynamic.move.empty()),
                        "--remove/--insert/--move need --boxes FILE");
-  json dynamic_edit;  // dynamic editing (render/dynamic_edit.h), with --boxes
-  const RenderResult result = [&] {
-    if (a.dynamic.boxes_path.empty())
-      return RenderFrames(cloud, {camera}, cam_from_world, options);
-    DynamicEditResult edited = ApplyEditsAndRender(
-        a.dynamic, cloud, {camera}, cam_from_world, options, real_frame0);
-    dynamic_edit = json::parse(edited.summary.ToJson());
-    std::cout << edited.summary.BriefReport() << "\n";
-    return std::move(edited).ToRenderResult();
-  }();
+  const RenderPreset preset = ParseRenderPreset(a.preset);
+  const RenderOptions base_options = RenderOptionsFromArgs(a, preset);
+  a.edits.forward_then_back = a.reverse;
+  a.edits.Check();
+  // An unusable --out fails before anything is read or rendered.
+  CreateOutputDirectory(a.out);
+
+  const RenderInput in = LoadRenderInput(a, base_options);
+  const PointCloud& cloud = in.scene.cloud;
+  const PinholeCamera& camera = in.camera;
+  cv::Mat real_frame0 = in.real_frame0;
+  std::vector<std::string> ground_truth_paths = in.ground_truth_paths;
+
+  const Trajectory edited = ApplyTrajectoryEdits(in.trajectory, a.edits);
+  if (edited.size() != ground_truth_paths.size() ||
+      a.edits.Describe() != "none")
+    ground_truth_paths.clear();
+  std::vector<Rigid3d> cam_from_world;
+  for (const auto& pose : edited.world_from_cam)
+    cam_from_world.push_back(pose.Inverse());
+  const int num_frames = static_cast<int>(cam_from_world.size());
+  if (!a.real_frame0.empty()) real_frame0 = ReadImageRgb(a.real_frame0);
+
+  // ---- Render, streaming chunks of frames to the outputs ----
+  const bool dynamic = !a.dynamic.boxes_path.empty();
+  const RenderMemoryPlan plan =
+      PlanRenderMemory(base_options, preset, cloud.size(), num_frames,
+                       a.threads, /*whole_clip=*/dynamic);
+  RenderOptions options = base_options;
+  // Threads: as asked (0 = OpenMP's default), fewer only when memory says so.
+  const int hw = static_cast<int>(
+      std::max(1u, std::thread::hardware_concurrency()));
+  if (a.threads > 0 || plan.threads < std::min(hw, num_frames))
+    options.num_threads = plan.threads;
   // Frame 0 is replaced by the real image only in the compat preset (the
   // released pipeline).
   const cv::Mat frame0_replacement =
       preset == RenderPreset::kGeodriveCompat ? real_frame0 : cv::Mat();
-  const std::vector<cv::Mat> frames =
-      FinalFrames(result, preset, frame0_replacement);
+  const int factor = PresetUpsampleFactor(preset);
+  const cv::Size output_size(options.width * factor, options.height * factor);
+  // Contact-sheet frames: every frame, or kMaxContactSheetFrames evenly spaced.
+  std::vector<char> on_sheet(num_frames, num_frames <= kMaxContactSheetFrames);
+  for (int k = 0; num_frames > kMaxContactSheetFrames &&
+                  k < kMaxContactSheetFrames;
+       ++k) {
+    on_sheet[static_cast<int64_t>(k) * (num_frames - 1) /
+             (kMaxContactSheetFrames - 1)] = 1;
+  }
 
-  // ---- Outputs ----
-  std::error_code ec;
-  fs::create_directories(a.out, ec);
-  GEODRIVE_CHECK_INPUT(!ec, a.out, ": cannot create output directory (",
-                       ec.message(), ")");
-  json report;
-  VideoWriteResult video;
+  json report, dynamic_edit;
+  std::unique_ptr<VideoStreamWriter> video;
   if (!a.no_video) {
     VideoWriteOptions vo;
     vo.fps = a.fps;
-    video = WriteVideo((fs::path(a.out) / "render.mp4").string(), frames, vo);
+    video = std::make_unique<VideoStreamWriter>(
+        (fs::path(a.out) / "render.mp4").string(), output_size.width,
+        output_size.height, vo);
+  }
+  std::vector<cv::Mat> thumbs, gt_thumbs;
+  std::vector<FrameStats> stats;
+  RenderSummary summary;
+  summary.num_points = static_cast<int64_t>(cloud.size());
+  RenderResult chunk;
+  for (int start = 0; start < num_frames; start += plan.chunk) {
+    const int end = std::min(num_frames, start + plan.chunk);
+    const std::vector<Rigid3d> poses(cam_from_world.begin() + start,
+                                     cam_from_world.begin() + end);
+    if (dynamic) {  // the whole clip at once (plan.chunk == num_frames)
+      DynamicEditResult result = ApplyEditsAndRender(
+          a.dynamic, cloud, {camera}, poses, options, real_frame0);
+      dynamic_edit = json::parse(result.summary.ToJson());
+      std::cout << result.summary.BriefReport() << "\n";
+      chunk = std::move(result).ToRenderResult();
+    } else {
+      RenderFramesInto(cloud, {camera}, poses, options, &chunk);
+    }
+    summary.seconds += chunk.summary.seconds;
+    const std::vector<cv::Mat> frames = FinalFrames(
+        chunk, preset, start == 0 ? frame0_replacement : cv::Mat());
+    for (int i = 0; i < end - start; ++i) {
+      AddToSummary(chunk.frames[i], start + i, &summary, &stats);
+      if (video) video->Write(frames[i]);
+      if (!on_sheet[start + i]) continue;
+      thumbs.push_back(ContactSheetThumbnail(frames[i]));
+      if (!ground_truth_paths.empty()) {
+        cv::Mat g;
+        cv::resize(ReadImageRgb(ground_truth_paths[start + i]), g,
+                   frames[i].size(), 0, 0, cv::INTER_AREA);
+        gt_thumbs.push_back(ContactSheetThumbnail(g));
+      }
+    }
+    if (a.frames) {
+      WritePngSequence((fs::path(a.out) / "frames").string(), "render_",
+                       frames, start);
+    }
+  }
+  summary.mean_coverage /= std::max(1, summary.num_frames);
+
+  // ---- Outputs ----
+  if (video) {
+    const VideoWriteResult written = video->Close();
     report["video"] = {
-        {"path", "render.mp4"},         {"fourcc", video.fourcc},
-        {"fell_back", video.fell_back}, {"fps", a.fps},
-        {"width", video.width},         {"height", video.height}};
+        {"path", "render.mp4"},           {"fourcc", written.fourcc},
+        {"fell_back", written.fell_back}, {"fps", a.fps},
+        {"width", written.width},         {"height", written.height}};
   }
-  if (a.frames) {
-    WritePngSequence((fs::path(a.out) / "frames").string(), "render_", frames);
-    report["frames_dir"] = "frames";
-  }
-  std::vector<cv::Mat> gt_sheet;
-  for (size_t i = 0; i < ground_truth.size(); ++i) {
-    cv::Mat g;
-    cv::resize(ground_truth[i], g, frames[i].size(), 0, 0, cv::INTER_AREA);
-    gt_sheet.push_back(g);
-  }
+  if (a.frames) report["frames_dir"] = "frames";
+  if (num_frames > kMaxContactSheetFrames)
+    report["contact_sheet_frames"] = kMaxContactSheetFrames;
   WriteImageRgb((fs::path(a.out) / "contact_sheet.png").string(),
-                MakeContactSheet(frames, gt_sheet));
+                MakeContactSheet(thumbs, gt_thumbs));
 
-  report =
-      RenderReport(a, in, edited, preset, options, !frame0_replacement.empty(),
-                   result, frames, dynamic_edit, std::move(report));
-  {
-    const std::string path = (fs::path(a.out) / "render.json").string();
-    std::ofstream out(path);
-    GEODRIVE_CHECK_INPUT(static_cast<bool>(out), path, ": cannot write");
-    out << report.dump(2) << "\n";
-  }
+  report = RenderReport(a, in, edited, preset, options,
+                        !frame0_replacement.empty(), stats, summary,
+                        output_size, dynamic_edit, std::move(report));
+  WriteFileAtomic((fs::path(a.out) / "render.json").string(),
+                  report.dump(2) + "\n");
 
-  std::cout << a.out << ": " << result.frames.size() << " frames "
-            << frames[0].cols << "x" << frames[0].rows << " ("
-            << ToString(options.mode) << ", preset " << ToString(preset)
+  std::cout << a.out << ": " << num_frames << " frames " << output_size.width
+            << "x" << output_size.height << " (" << ToString(options.mode)
+            << ", preset " << ToString(preset)
             << ", trajectory edits: " << a.edits.Describe()
-            << (a.dynamic.boxes_path.empty()
-                    ? std::string()
-                    : ", objects: " + a.dynamic.edit_mode + " mode, " +
-                          std::to_string(dynamic_edit["edits"].size()) +
-                          " applied")
+            << (dynamic ? ", objects: " + a.dynamic.edit_mode + " mode, " +
+                              std::to_string(dynamic_edit["edits"].size()) +
+                              " applied"
+                        : std::string())
             << ") from " << cloud.size() << " points; "
-            << "coverage mean " << Fixed(result.summary.mean_coverage, 3)
-            << " min " << Fixed(result.summary.min_coverage, 3) << "; "
+            << "coverage mean " << Fixed(summary.mean_coverage, 3) << " min "
+            << Fixed(summary.min_coverage, 3) << "; "
             << (a.no_video ? std::string("no video")
-                           : "render.mp4 (" + video.fourcc +
-                                 (video.fell_back ? ", fallback" : "") + ")")
+                           : "render.mp4 (" +
+                                 report["video"]["fourcc"].get<std::string>() +
+                                 (report["video"]["fell_back"].get<bool>()
+                                      ? ", fallback"
+                                      : "") +
+                                 ")")
             << "\n";
-  if (!result.summary.empty_frames.empty()) {
+  if (!summary.empty_frames.empty()) {
     std::cerr
-        << "warning: " << result.summary.empty_frames.size()
+        << "warning: " << summary.empty_frames.size()
         << " frame(s) have no visible point (all-invalid): see render.json\n";
   }
   return kExitOk;
@@ -450,7 +586,8 @@ CommandRunner SetupRender(CLI::App& app) {
   app.add_flag("--frames", a->frames,
                "Also write the lossless PNG sequence frames/render_NNNN.png");
   app.add_flag("--no-video", a->no_video, "Do not write render.mp4");
-  app.add_option("--threads", a->threads, "Threads (0 = all)");
+  app.add_option("--threads", a->threads, "Threads (0 = all cores, at most 256)")
+      ->check(ThreadCountValidator());
   app.add_option(
       "--boxes", a->dynamic.boxes_path,
       "Dynamic editing: box sequences (data_schema/boxes.schema.json)");

@@ -401,7 +401,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   opt.Check();
   const auto t_start = std::chrono::steady_clock::now();
   BuildDatasetSummary summary;
-  fs::create_directories(opt.out + "/pairs");
+  CreateOutputDirectory(opt.out + "/pairs");
 
   DriveDatasetOptions dso;
   dso.root = opt.dataroot;

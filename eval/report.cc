@@ -398,7 +398,7 @@ std::vector<std::string> WriteEvalOutputs(const EvalReport& r,
                     md_path = base.string() + ".md",
                     png_path = base.string() + ".png";
   if (fs::path(json_path).has_parent_path()) {
-    fs::create_directories(fs::path(json_path).parent_path());
+    CreateOutputDirectory(fs::path(json_path).parent_path().string());
   }
   const std::vector<std::string> present = PresentImageMetrics(r);
   WriteReportJson(r, present, json_path);

@@ -88,6 +88,24 @@ cv::Mat ReadFloatMap(const std::string& path, int channels) {
   return NpyToMat(ReadNpyAsFloat32(path), channels, path);
 }
 
+// Reads an (H, W[, C]) map after checking, from the header alone, that its
+// height and width are `height` x `width`: a map of the wrong (possibly huge)
+// shape is refused before anything is allocated for it.
+cv::Mat ReadFloatMapOfShape(const std::string& path,
+                            int channels,
+                            int width,
+                            int height,
+                            const std::string& reference) {
+  const NpyHeader header = ReadNpyHeader(path);
+  if (header.shape.size() >= 2 &&
+      (header.shape[0] != height || header.shape[1] != width)) {
+    ThrowInputError(path, "shape ", header.shape[0], "x", header.shape[1],
+                    " (HxW) differs from ", reference, " ", height, "x",
+                    width);
+  }
+  return ReadFloatMap(path, channels);
+}
+
 void CheckShape(const cv::Mat& m,
                 int width,
                 int height,
@@ -316,8 +334,8 @@ Monst3rFrame Monst3rFolder::LoadFrame(int i,
   frame.camera = cameras_[i];
   frame.world_from_cam = trajectory_.world_from_cam[i];
   const std::string depth_path = DepthPath(i);
-  frame.depth = ReadFloatMap(depth_path, 1);
-  CheckShape(frame.depth, width_, height_, depth_path, "frame_0000.npy");
+  frame.depth =
+      ReadFloatMapOfShape(depth_path, 1, width_, height_, "frame_0000.npy");
   const std::string ref =
       "the depth map " + fs::path(depth_path).filename().string();
   if (options.rgb && has_rgb_) {
@@ -325,8 +343,7 @@ Monst3rFrame Monst3rFolder::LoadFrame(int i,
     CheckShape(frame.rgb, width_, height_, RgbPath(i), ref);
   }
   auto read_conf = [&](const std::string& path) {
-    cv::Mat conf = ReadFloatMap(path, 1);
-    CheckShape(conf, width_, height_, path, ref);
+    cv::Mat conf = ReadFloatMapOfShape(path, 1, width_, height_, ref);
     if (options.reject_all_invalid_confidence) {
       bool any = false;
       for (int r = 0; r < conf.rows && !any; ++r) {
@@ -338,8 +355,14 @@ Monst3rFrame Monst3rFolder::LoadFrame(int i,
           }
         }
       }
-      GEODRIVE_CHECK_INPUT(any, path,
-                           ": confidence is -inf (or NaN) at every pixel");
+      if (!any) {
+        // Name what the map holds: MonST3R writes -inf where it has no
+        // confidence; +inf or NaN everywhere means a broken writer.
+        const float v = conf.at<float>(0, 0);
+        ThrowInputError(path, "confidence is not finite at any pixel (",
+                        std::isnan(v) ? "NaN" : (v > 0 ? "+inf" : "-inf"),
+                        " at pixel 0, 0)");
+      }
     }
     return conf;
   };
@@ -356,9 +379,8 @@ Monst3rFrame Monst3rFolder::LoadFrame(int i,
         ReadMask(EnlargedDynamicMaskPath(i), width_, height_, ref);
   }
   if (options.raw_pointmaps && has_pts3d_) {
-    frame.raw_points_in_world = ReadFloatMap(RawPointmapPath(i), 3);
-    CheckShape(frame.raw_points_in_world, width_, height_, RawPointmapPath(i),
-               ref);
+    frame.raw_points_in_world =
+        ReadFloatMapOfShape(RawPointmapPath(i), 3, width_, height_, ref);
   }
   return frame;
 }
@@ -452,8 +474,8 @@ RawPointmap ReadRawPointmap(const std::string& points_path,
     }
   }
   if (!confidence_path.empty()) {
-    cv::Mat conf = ReadFloatMap(confidence_path, 1);
-    CheckShape(conf, w, h, confidence_path, "the pointmap " + points_path);
+    cv::Mat conf = ReadFloatMapOfShape(confidence_path, 1, w, h,
+                                       "the pointmap " + points_path);
     out.confidence01 = ConfidenceMapToUnit(conf, encoding);
   }
   return out;

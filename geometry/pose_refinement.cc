@@ -361,8 +361,8 @@ void PoseRefinementOptions::Check() const {
                        " must be >= 0");
   GEODRIVE_CHECK_INPUT(max_iterations >= 0, "max_iterations ", max_iterations,
                        " must be >= 0");
-  GEODRIVE_CHECK_INPUT(num_threads >= 1, "num_threads ", num_threads,
-                       " must be >= 1");
+  GEODRIVE_CHECK_INPUT(num_threads >= 1 && num_threads <= 256, "num_threads ",
+                       num_threads, " must be in 1..256");
   GEODRIVE_CHECK_INPUT(inlier_threshold_px > 0,
                        "inlier_threshold_px must be positive");
   GEODRIVE_CHECK_INPUT(min_valid_pixels >= 6, "min_valid_pixels ",

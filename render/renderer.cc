@@ -216,13 +216,43 @@ void RenderOptions::Check() const {
   GEODRIVE_CHECK_INPUT(
       hole_fill_min_neighbors >= 1 && hole_fill_min_neighbors <= 8,
       "render options: hole_fill_min_neighbors must be in 1..8");
-  GEODRIVE_CHECK_INPUT(num_threads >= 0,
-                       "render options: num_threads must be >= 0");
+  GEODRIVE_CHECK_INPUT(num_threads >= 0 && num_threads <= 256,
+                       "render options: num_threads must be in 0..256");
 }
 
 double RenderedFrame::coverage() const {
   const double n = static_cast<double>(mask.total());
   return n > 0 ? num_valid / n : 0.0;
+}
+
+uint64_t RenderedFrameBytes(const RenderOptions& options) {
+  // rgb (3) + depth (4) + mask (1), plus the optional outputs.
+  uint64_t per_pixel = 3 + 4 + 1;
+  if (options.output_index) per_pixel += 4;
+  if (options.output_instance) per_pixel += 4;
+  if (options.output_float_rgb || options.mode == RenderMode::kSoft)
+    per_pixel += 12;
+  return per_pixel * static_cast<uint64_t>(options.width) * options.height;
+}
+
+uint64_t EstimateRenderBytes(const RenderOptions& options, int64_t num_points,
+                             int frames_held, int threads) {
+  const uint64_t pixels = static_cast<uint64_t>(options.width) * options.height;
+  // Scratch per thread: z-buffer keys (8) and point indices (4) per pixel;
+  // soft mode keeps 7 floats of compositing state per pixel, and per point
+  // the projected coordinates, candidate lists and radix-sort buffers.
+  const uint64_t scratch_per_pixel =
+      options.mode == RenderMode::kSoft ? 7 * 4 + 4 : 8 + 4;
+  const uint64_t scratch_per_point =
+      options.mode == RenderMode::kSoft ? 3 * 4 + 3 * 4 + 2 * 4 : 16;
+  const uint64_t points = static_cast<uint64_t>(std::max<int64_t>(num_points, 0));
+  const uint64_t per_thread =
+      scratch_per_pixel * pixels + scratch_per_point * points;
+  // The packed cloud: positions (12), colour (3), instance (4), padding.
+  const uint64_t packed = 24 * points;
+  return static_cast<uint64_t>(std::max(frames_held, 0)) *
+             RenderedFrameBytes(options) +
+         static_cast<uint64_t>(std::max(threads, 1)) * per_thread + packed;
 }
 
 std::string RenderSummary::BriefReport() const {

@@ -185,6 +185,18 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
                                 RenderResult* result,
                                 const std::vector<size_t>& hidden_static = {});
 
+// Estimated bytes a render holds at its peak: `frames_held` output frames
+// (RenderedFrame with the outputs `options` asks for) plus, for each of
+// `threads` threads, the per-pixel and per-point scratch of the mode, plus the
+// packed cloud of `num_points` points. Callers compare it with
+// AvailableMemoryBytes() (geometry/util/memory.h) to refuse a job that cannot
+// fit instead of dying on std::bad_alloc, and to choose how many frames to
+// hold when streaming.
+uint64_t EstimateRenderBytes(const RenderOptions& options, int64_t num_points,
+                             int frames_held, int threads);
+// The output bytes of one rendered frame (part of EstimateRenderBytes).
+uint64_t RenderedFrameBytes(const RenderOptions& options);
+
 // Testing hook: enables or disables the AVX2 splat kernels (on by default
 // where the CPU has AVX2). Both paths give byte-identical output; returns the
 // previous setting.

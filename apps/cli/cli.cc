@@ -1,8 +1,10 @@
 #include "apps/cli/cli.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <map>
+#include <new>
 
 #include "geometry/util/status.h"
 
@@ -55,6 +57,19 @@ int RunCommandLine(const CliProgram& program, int argc, char** argv) {
     } catch (const InputError& e) {
       std::cerr << who << ": error: " << e.what() << std::endl;
       return kExitBadInput;
+    } catch (const std::filesystem::filesystem_error& e) {
+      // A folder or file the command could not create, read or rename
+      // (permissions, a full disk, a file where a folder should be): the
+      // message names the path(s).
+      std::cerr << who << ": error: " << e.what() << std::endl;
+      return kExitBadInput;
+    } catch (const std::bad_alloc&) {
+      std::cerr << who
+                << ": error: out of memory (the job needs more memory than "
+                   "this process may use: try a smaller --size, fewer "
+                   "frames or fewer --threads)"
+                << std::endl;
+      return kExitInternal;
     } catch (const std::exception& e) {
       std::cerr << who << ": internal error: " << e.what() << std::endl;
       return kExitInternal;
@@ -84,6 +99,25 @@ void ParseSizeHxW(const std::string& text,
   } catch (const std::logic_error&) {
     ThrowInputError(what, "expected HxW (height first), e.g. 480x720");
   }
+}
+
+CLI::Validator ThreadCountValidator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        long long v = -1;
+        size_t used = 0;
+        try {
+          v = std::stoll(text, &used);
+        } catch (const std::logic_error&) {
+          used = 0;
+        }
+        if (used == 0 || used != text.size() || v < 0 || v > kMaxThreads) {
+          return "must be an integer in 0.." + std::to_string(kMaxThreads) +
+                 " (0 = all cores), got '" + text + "'";
+        }
+        return "";
+      },
+      "0.." + std::to_string(kMaxThreads));
 }
 
 }  // namespace geodrive

@@ -62,8 +62,10 @@ struct CliProgram {
 
 // Parses argv against the registered commands (sorted by name) and runs the
 // chosen one: the error ladder. --help/--version exit 0; a parse error or an
-// InputError prints one line "<name> [<command>]: error: ..." and returns 2;
-// any other exception "...: internal error: ..." and returns 1.
+// InputError or a std::filesystem error (it names the paths) prints one line
+// "<name> [<command>]: error: ..." and returns 2; std::bad_alloc prints
+// "...: error: out of memory (...)" and returns 1; any other exception
+// "...: internal error: ..." and returns 1.
 int RunCommandLine(const CliProgram& program, int argc, char** argv);
 
 // An image size "HxW" (height first, e.g. 480x720, as every --size of both
@@ -72,6 +74,15 @@ void ParseSizeHxW(const std::string& text,
                   const std::string& option,
                   int* height,
                   int* width);
+
+// The largest --threads any command accepts. OpenMP and std::thread teams
+// far beyond the core count only cost memory (libgomp fails to create them
+// somewhere above a thousand, with a raw message of its own).
+constexpr int kMaxThreads = 256;
+
+// Validator of every --threads option: an integer (the whole string) in
+// 0..kMaxThreads, 0 meaning "all cores".
+CLI::Validator ThreadCountValidator();
 
 }  // namespace geodrive
 

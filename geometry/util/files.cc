@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -127,6 +128,27 @@ void RenameIntoPlace(const std::string& tmp, const std::string& path) {
   }
 }
 }  // namespace
+
+void CreateOutputDirectory(const std::string& dir) {
+  GEODRIVE_CHECK_INPUT(!dir.empty(), "the output folder is an empty path");
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    ThrowInputError(dir, "cannot create the output folder (", ec.message(),
+                    ")");
+  }
+  GEODRIVE_CHECK_INPUT(std::filesystem::is_directory(dir, ec), dir,
+                       ": exists and is not a folder");
+  std::string probe = (std::filesystem::path(dir) / ".geodrive-probe-XXXXXX")
+                          .string();
+  const int fd = ::mkstemp(&probe[0]);
+  if (fd < 0) {
+    ThrowInputError(dir, "output folder is not writable (",
+                    std::strerror(errno), ")");
+  }
+  ::close(fd);
+  ::unlink(probe.c_str());
+}
 
 void WriteFileAtomic(const std::string& path, const void* bytes, size_t size) {
   const std::string tmp = TemporaryPathFor(path);

@@ -48,6 +48,12 @@ inline void WriteFileAtomic(const std::string& path,
 // failure. WriteFileAtomic and WriteViaTemporary end with it.
 void CommitTemporaryFile(const std::string& tmp, const std::string& path);
 
+// Creates `dir` (and its parents) if needed and checks that a file can be
+// created in it, so that a command finds an unusable output folder before it
+// computes anything. Throws InputError "<dir>: cannot create the output
+// folder (...)" or "<dir>: output folder is not writable (...)".
+void CreateOutputDirectory(const std::string& dir);
+
 // Renames a completed temporary folder to its final name (atomic on one
 // filesystem) after fsync-ing its files. Throws InputError if `final_dir`
 // already exists or the rename fails.

@@ -14,10 +14,21 @@
 // binaries and the render benchmarks call it first thing; library code never
 // does. Setting GEODRIVE_MALLOC_DEFAULTS=1 in the environment skips it.
 
+#include <cstdint>
+
 namespace geodrive {
 
 // Applies the policy above (glibc mallopt); returns false where it is not
 // supported or was skipped by GEODRIVE_MALLOC_DEFAULTS=1.
 bool ConfigureAllocatorForThroughput();
+
+// Bytes this process can still allocate, as far as the system says: the
+// smallest of the memory the kernel reports available (/proc/meminfo
+// MemAvailable), the address-space and data-segment limits (`ulimit -v`,
+// `ulimit -d`) less what the process already uses, and the cgroup's
+// memory.max less memory.current. UINT64_MAX when none of these is known.
+// Commands that would hold large buffers check their estimate against it
+// and refuse with a clear message instead of dying on std::bad_alloc.
+uint64_t AvailableMemoryBytes();
 
 }  // namespace geodrive

@@ -68,32 +68,41 @@ void Drain(Cleanup& c, AVStream* stream, const std::string& path) {
 
 }  // namespace
 
-void WriteH264Mp4(const std::string& path,
-                  const std::vector<cv::Mat>& frames,
-                  const H264Options& options) {
-  options.Check();
-  GEODRIVE_CHECK_INPUT(!frames.empty(), path, ": no frames to write");
-  const int w = frames[0].cols, h = frames[0].rows;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    GEODRIVE_CHECK_INPUT(frames[i].type() == CV_8UC3 && frames[i].cols == w &&
-                             frames[i].rows == h,
-                         path, ": frame ", i, " is not an RGB ", w, "x", h,
-                         " image");
-  }
-  const int ew = w + (w % 2), eh = h + (h % 2);
-  const std::string tmp = path + ".tmp.mp4";
-  av_log_set_level(AV_LOG_ERROR);
+struct H264Mp4Writer::Impl {
+  std::string path, tmp;
+  int w = 0, h = 0, ew = 0, eh = 0;
+  int frames = 0;
+  bool finished = false;
   Cleanup c;
-  int r = avformat_alloc_output_context2(&c.fmt, nullptr, "mp4", tmp.c_str());
+  AVStream* stream = nullptr;
+  cv::Mat padded, yuv;
+};
+
+H264Mp4Writer::H264Mp4Writer(const std::string& path, int width, int height,
+                             const H264Options& options)
+    : impl_(std::make_unique<Impl>()) {
+  options.Check();
+  GEODRIVE_CHECK_INPUT(width > 0 && height > 0, path, ": bad frame size ",
+                       width, "x", height);
+  Impl& m = *impl_;
+  m.path = path;
+  m.tmp = path + ".tmp.mp4";
+  m.w = width;
+  m.h = height;
+  m.ew = width + (width % 2);
+  m.eh = height + (height % 2);
+  Cleanup& c = m.c;
+  av_log_set_level(AV_LOG_ERROR);
+  int r = avformat_alloc_output_context2(&c.fmt, nullptr, "mp4", m.tmp.c_str());
   GEODRIVE_CHECK_INPUT(r >= 0 && c.fmt, path, ": cannot create an mp4 muxer (",
                        AvError(r), ")");
   const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
   GEODRIVE_CHECK_INPUT(codec, path,
                        ": this FFmpeg has no libx264 H.264 encoder");
-  AVStream* stream = avformat_new_stream(c.fmt, nullptr);
+  m.stream = avformat_new_stream(c.fmt, nullptr);
   c.codec = avcodec_alloc_context3(codec);
-  c.codec->width = ew;
-  c.codec->height = eh;
+  c.codec->width = m.ew;
+  c.codec->height = m.eh;
   c.codec->pix_fmt = AV_PIX_FMT_YUV420P;
   // A rational time base from the fps (e.g. 10 -> 1/10, 12.5 -> 2/25).
   const AVRational rate = av_d2q(options.fps, 100000);
@@ -114,12 +123,12 @@ void WriteH264Mp4(const std::string& path,
   r = avcodec_open2(c.codec, codec, nullptr);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the H.264 encoder (",
                        AvError(r), ")");
-  r = avcodec_parameters_from_context(stream->codecpar, c.codec);
+  r = avcodec_parameters_from_context(m.stream->codecpar, c.codec);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (", AvError(r), ")");
-  stream->time_base = c.codec->time_base;
-  stream->avg_frame_rate = rate;
+  m.stream->time_base = c.codec->time_base;
+  m.stream->avg_frame_rate = rate;
   c.fmt->flags |= AVFMT_FLAG_BITEXACT;
-  r = avio_open(&c.fmt->pb, tmp.c_str(), AVIO_FLAG_WRITE);
+  r = avio_open(&c.fmt->pb, m.tmp.c_str(), AVIO_FLAG_WRITE);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (", AvError(r),
                        ")");
   c.io_open = true;
@@ -129,62 +138,106 @@ void WriteH264Mp4(const std::string& path,
   av_dict_free(&mux_options);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot write the mp4 header (",
                        AvError(r), ")");
-
   c.packet = av_packet_alloc();
+  cv::Mat padded_storage(m.eh + 2, m.ew, CV_8UC3, cv::Scalar(0, 0, 0));
+  m.padded = padded_storage(cv::Rect(0, 0, m.ew, m.eh)).clone();
+}
 
-  cv::Mat padded_storage(eh + 2, ew, CV_8UC3, cv::Scalar(0, 0, 0));
-  cv::Mat padded = padded_storage(cv::Rect(0, 0, ew, eh)).clone();
-  cv::Mat yuv;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    frames[i].copyTo(padded(cv::Rect(0, 0, w, h)));
-    // A fresh, fully zeroed frame each time (the encoder may keep a reference
-    // to the previous one, and uninitialised row padding would make the output
-    // depend on heap contents).
-    if (c.frame) av_frame_free(&c.frame);
-    c.frame = av_frame_alloc();
-    c.frame->format = AV_PIX_FMT_YUV420P;
-    c.frame->width = ew;
-    c.frame->height = eh;
-    r = av_frame_get_buffer(c.frame, 0);
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": frame allocation failed");
-    for (int p = 0; p < 3; ++p) {
-      std::memset(
-          c.frame->data[p], 0,
-          static_cast<size_t>(c.frame->linesize[p]) * (p ? eh / 2 : eh));
-    }
-    // RGB -> YUV 4:2:0 (BT.601, limited range) with OpenCV: deterministic and
-    // independent of buffer alignment (swscale picks SIMD paths by alignment).
-    cv::cvtColor(padded, yuv, cv::COLOR_RGB2YUV_I420);
-    const uint8_t* y = yuv.ptr<uint8_t>(0);
-    const uint8_t* u = y + static_cast<size_t>(ew) * eh;
-    const uint8_t* v = u + static_cast<size_t>(ew / 2) * (eh / 2);
-    for (int row = 0; row < eh; ++row) {
-      std::memcpy(
-          c.frame->data[0] + static_cast<size_t>(row) * c.frame->linesize[0],
-          y + static_cast<size_t>(row) * ew, ew);
-    }
-    for (int row = 0; row < eh / 2; ++row) {
-      std::memcpy(
-          c.frame->data[1] + static_cast<size_t>(row) * c.frame->linesize[1],
-          u + static_cast<size_t>(row) * (ew / 2), ew / 2);
-      std::memcpy(
-          c.frame->data[2] + static_cast<size_t>(row) * c.frame->linesize[2],
-          v + static_cast<size_t>(row) * (ew / 2), ew / 2);
-    }
-    c.frame->pts = static_cast<int64_t>(i);
-    r = avcodec_send_frame(c.codec, c.frame);
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding frame ", i, " failed (",
-                         AvError(r), ")");
-    Drain(c, stream, path);
+H264Mp4Writer::~H264Mp4Writer() {
+  if (!impl_ || impl_->finished) return;
+  // Abandoned (an exception): close the muxer's file and remove it.
+  Cleanup& c = impl_->c;
+  if (c.fmt && c.io_open) {
+    avio_closep(&c.fmt->pb);
+    c.io_open = false;
   }
+  std::remove(impl_->tmp.c_str());
+}
+
+int H264Mp4Writer::frames_written() const { return impl_->frames; }
+
+void H264Mp4Writer::Write(const cv::Mat& frame_rgb) {
+  Impl& m = *impl_;
+  Cleanup& c = m.c;
+  GEODRIVE_CHECK_INPUT(!m.finished, m.path, ": write after finish");
+  GEODRIVE_CHECK_INPUT(frame_rgb.type() == CV_8UC3 && frame_rgb.cols == m.w &&
+                           frame_rgb.rows == m.h,
+                       m.path, ": frame ", m.frames, " is not an RGB ", m.w,
+                       "x", m.h, " image");
+  const int ew = m.ew, eh = m.eh;
+  frame_rgb.copyTo(m.padded(cv::Rect(0, 0, m.w, m.h)));
+  // A fresh, fully zeroed frame each time (the encoder may keep a reference
+  // to the previous one, and uninitialised row padding would make the output
+  // depend on heap contents).
+  if (c.frame) av_frame_free(&c.frame);
+  c.frame = av_frame_alloc();
+  c.frame->format = AV_PIX_FMT_YUV420P;
+  c.frame->width = ew;
+  c.frame->height = eh;
+  int r = av_frame_get_buffer(c.frame, 0);
+  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": frame allocation failed");
+  for (int p = 0; p < 3; ++p) {
+    std::memset(c.frame->data[p], 0,
+                static_cast<size_t>(c.frame->linesize[p]) * (p ? eh / 2 : eh));
+  }
+  // RGB -> YUV 4:2:0 (BT.601, limited range) with OpenCV: deterministic and
+  // independent of buffer alignment (swscale picks SIMD paths by alignment).
+  cv::cvtColor(m.padded, m.yuv, cv::COLOR_RGB2YUV_I420);
+  const uint8_t* y = m.yuv.ptr<uint8_t>(0);
+  const uint8_t* u = y + static_cast<size_t>(ew) * eh;
+  const uint8_t* v = u + static_cast<size_t>(ew / 2) * (eh / 2);
+  for (int row = 0; row < eh; ++row) {
+    std::memcpy(
+        c.frame->data[0] + static_cast<size_t>(row) * c.frame->linesize[0],
+        y + static_cast<size_t>(row) * ew, ew);
+  }
+  for (int row = 0; row < eh / 2; ++row) {
+    std::memcpy(
+        c.frame->data[1] + static_cast<size_t>(row) * c.frame->linesize[1],
+        u + static_cast<size_t>(row) * (ew / 2), ew / 2);
+    std::memcpy(
+        c.frame->data[2] + static_cast<size_t>(row) * c.frame->linesize[2],
+        v + static_cast<size_t>(row) * (ew / 2), ew / 2);
+  }
+  c.frame->pts = static_cast<int64_t>(m.frames);
+  r = avcodec_send_frame(c.codec, c.frame);
+  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": encoding frame ", m.frames,
+                       " failed (", AvError(r), ")");
+  Drain(c, m.stream, m.path);
+  ++m.frames;
+}
+
+void H264Mp4Writer::Finish() {
+  Impl& m = *impl_;
+  Cleanup& c = m.c;
+  GEODRIVE_CHECK_INPUT(!m.finished, m.path, ": finished twice");
+  GEODRIVE_CHECK_INPUT(m.frames > 0, m.path, ": no frames to write");
   avcodec_send_frame(c.codec, nullptr);
-  Drain(c, stream, path);
-  r = av_write_trailer(c.fmt);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot finish the mp4 (", AvError(r),
+  Drain(c, m.stream, m.path);
+  const int r = av_write_trailer(c.fmt);
+  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": cannot finish the mp4 (", AvError(r),
                        ")");
   avio_closep(&c.fmt->pb);
   c.io_open = false;
-  CommitTemporaryFile(tmp, path);
+  CommitTemporaryFile(m.tmp, m.path);
+  m.finished = true;
+}
+
+void WriteH264Mp4(const std::string& path,
+                  const std::vector<cv::Mat>& frames,
+                  const H264Options& options) {
+  options.Check();
+  GEODRIVE_CHECK_INPUT(!frames.empty(), path, ": no frames to write");
+  const int w = frames[0].cols, h = frames[0].rows;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    GEODRIVE_CHECK_INPUT(frames[i].type() == CV_8UC3 && frames[i].cols == w &&
+                             frames[i].rows == h,
+                         path, ": frame ", i, " is not an RGB ", w, "x", h,
+                         " image");
+  }
+  H264Mp4Writer writer(path, w, h, options);
+  for (const cv::Mat& frame : frames) writer.Write(frame);
+  writer.Finish();
 }
 
 }  // namespace geodrive

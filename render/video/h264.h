@@ -13,6 +13,7 @@
 // (BT.601 limited range), and writes yuv420p. The same frames and options give
 // byte-identical files.
 
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -34,6 +35,31 @@ struct H264Options {
 void WriteH264Mp4(const std::string& path,
                   const std::vector<cv::Mat>& frames_rgb,
                   const H264Options& options = {});
+
+// The same writer, one frame at a time, so that a long clip never has to be
+// held in memory: the constructor opens the encoder and a temporary file,
+// Write() encodes one frame, Finish() flushes and renames the file into
+// place. Destroyed without Finish() (an exception), it removes the temporary
+// file. The bytes equal WriteH264Mp4's for the same frames.
+class H264Mp4Writer {
+ public:
+  // `width` x `height` is the frame size (odd sizes are padded as above).
+  H264Mp4Writer(const std::string& path, int width, int height,
+                const H264Options& options = {});
+  ~H264Mp4Writer();
+  H264Mp4Writer(const H264Mp4Writer&) = delete;
+  H264Mp4Writer& operator=(const H264Mp4Writer&) = delete;
+
+  // Encodes one RGB CV_8UC3 frame of the constructor's size.
+  void Write(const cv::Mat& frame_rgb);
+  // Flushes the encoder, writes the trailer and commits the file.
+  void Finish();
+  int frames_written() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // True when this FFmpeg build has an H.264 encoder (libx264).
 bool HasH264Encoder();

@@ -25,6 +25,12 @@ void CheckFrames(const std::string& what, const std::vector<cv::Mat>& frames) {
   }
 }
 
+// Thumbnail height for width `tw`, aspect of `frame` kept.
+int ThumbHeight(const cv::Mat& frame, int tw) {
+  return std::max(1, static_cast<int>(std::lround(
+                         static_cast<double>(frame.rows) * tw / frame.cols)));
+}
+
 int FourCC(const std::string& code) {
   GEODRIVE_CHECK_INPUT(code.size() == 4, "video: fourcc '", code,
                        "' must have 4 characters");
@@ -40,66 +46,113 @@ void VideoWriteOptions::Check() const {
   if (!fallback_fourcc.empty()) FourCC(fallback_fourcc);
 }
 
-VideoWriteResult WriteVideo(const std::string& path,
-                            const std::vector<cv::Mat>& frames_rgb,
-                            const VideoWriteOptions& options) {
-  options.Check();
-  CheckFrames(path, frames_rgb);
+struct VideoStreamWriter::Impl {
+  std::string path;
   VideoWriteResult result;
+  cv::Size size, frame_size;
+  std::unique_ptr<H264Mp4Writer> h264;
+  cv::VideoWriter opencv;
+  cv::Mat bgr;
+  bool closed = false;
+};
+
+VideoStreamWriter::VideoStreamWriter(const std::string& path, int width,
+                                     int height,
+                                     const VideoWriteOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  options.Check();
+  GEODRIVE_CHECK_INPUT(width > 0 && height > 0, path, ": bad frame size ",
+                       width, "x", height);
+  Impl& m = *impl_;
+  m.path = path;
+  m.frame_size = cv::Size(width, height);
   // H.264 (yuv420p) needs even sizes: pad with black.
-  result.width = frames_rgb[0].cols + (frames_rgb[0].cols % 2);
-  result.height = frames_rgb[0].rows + (frames_rgb[0].rows % 2);
-  const cv::Size size(result.width, result.height);
+  m.result.width = width + (width % 2);
+  m.result.height = height + (height % 2);
+  m.size = cv::Size(m.result.width, m.result.height);
   if (options.fourcc == "avc1" && HasH264Encoder()) {
     // Deterministic libx264 path (byte-identical files for identical frames).
     H264Options h264;
     h264.fps = options.fps;
-    WriteH264Mp4(path, frames_rgb, h264);
-    result.fourcc = "avc1";
-    result.frames = static_cast<int>(frames_rgb.size());
-    return result;
+    m.h264 = std::make_unique<H264Mp4Writer>(path, width, height, h264);
+    m.result.fourcc = "avc1";
+    return;
   }
-  cv::VideoWriter writer;
-  result.fourcc = options.fourcc;
-  if (!writer.open(path, cv::CAP_FFMPEG, FourCC(options.fourcc), options.fps,
-                   size, true)) {
+  m.result.fourcc = options.fourcc;
+  if (!m.opencv.open(path, cv::CAP_FFMPEG, FourCC(options.fourcc), options.fps,
+                     m.size, true)) {
     GEODRIVE_CHECK_INPUT(!options.fallback_fourcc.empty(), path,
                          ": cannot open a video writer with fourcc ",
                          options.fourcc);
     std::cerr << "warning: " << path << ": fourcc " << options.fourcc
               << " is not available through OpenCV's FFmpeg backend; using "
               << options.fallback_fourcc << "\n";
-    result.fourcc = options.fallback_fourcc;
-    result.fell_back = true;
+    m.result.fourcc = options.fallback_fourcc;
+    m.result.fell_back = true;
     GEODRIVE_CHECK_INPUT(
-        writer.open(path, cv::CAP_FFMPEG, FourCC(options.fallback_fourcc),
-                    options.fps, size, true),
+        m.opencv.open(path, cv::CAP_FFMPEG, FourCC(options.fallback_fourcc),
+                      options.fps, m.size, true),
         path, ": cannot open a video writer (tried ", options.fourcc, " and ",
         options.fallback_fourcc, ")");
   }
-  cv::Mat bgr;
-  for (const cv::Mat& rgb : frames_rgb) {
-    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-    if (bgr.size() != size) {
-      cv::copyMakeBorder(bgr, bgr, 0, size.height - bgr.rows, 0,
-                         size.width - bgr.cols, cv::BORDER_CONSTANT,
+}
+
+VideoStreamWriter::~VideoStreamWriter() = default;
+
+void VideoStreamWriter::Write(const cv::Mat& rgb) {
+  Impl& m = *impl_;
+  GEODRIVE_CHECK_INPUT(!m.closed, m.path, ": write after close");
+  GEODRIVE_CHECK_INPUT(rgb.type() == CV_8UC3 && rgb.size() == m.frame_size,
+                       m.path, ": frame ", m.result.frames, " is not an RGB ",
+                       m.frame_size.width, "x", m.frame_size.height, " image");
+  if (m.h264) {
+    m.h264->Write(rgb);
+  } else {
+    cv::cvtColor(rgb, m.bgr, cv::COLOR_RGB2BGR);
+    if (m.bgr.size() != m.size) {
+      cv::copyMakeBorder(m.bgr, m.bgr, 0, m.size.height - m.bgr.rows, 0,
+                         m.size.width - m.bgr.cols, cv::BORDER_CONSTANT,
                          cv::Scalar(0, 0, 0));
     }
-    writer.write(bgr);
-    ++result.frames;
+    m.opencv.write(m.bgr);
   }
-  writer.release();
-  GEODRIVE_CHECK_INPUT(
-      std::filesystem::exists(path) && std::filesystem::file_size(path) > 0,
-      path, ": the video writer produced no file");
-  return result;
+  ++m.result.frames;
+}
+
+VideoWriteResult VideoStreamWriter::Close() {
+  Impl& m = *impl_;
+  GEODRIVE_CHECK_INPUT(!m.closed, m.path, ": closed twice");
+  GEODRIVE_CHECK_INPUT(m.result.frames > 0, m.path, ": no frames");
+  m.closed = true;
+  if (m.h264) {
+    m.h264->Finish();
+    return m.result;
+  }
+  m.opencv.release();
+  GEODRIVE_CHECK_INPUT(std::filesystem::exists(m.path) &&
+                           std::filesystem::file_size(m.path) > 0,
+                       m.path, ": the video writer produced no file");
+  return m.result;
+}
+
+VideoWriteResult WriteVideo(const std::string& path,
+                            const std::vector<cv::Mat>& frames_rgb,
+                            const VideoWriteOptions& options) {
+  options.Check();
+  CheckFrames(path, frames_rgb);
+  VideoStreamWriter writer(path, frames_rgb[0].cols, frames_rgb[0].rows,
+                           options);
+  for (const cv::Mat& rgb : frames_rgb) writer.Write(rgb);
+  return writer.Close();
 }
 
 std::vector<std::string> WritePngSequence(
     const std::string& dir,
     const std::string& prefix,
-    const std::vector<cv::Mat>& frames_rgb) {
+    const std::vector<cv::Mat>& frames_rgb,
+    int first_index) {
   CheckFrames(dir, frames_rgb);
+  GEODRIVE_CHECK_INPUT(first_index >= 0, dir, ": negative first frame index");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   GEODRIVE_CHECK_INPUT(!ec, dir, ": cannot create directory (", ec.message(),
@@ -109,7 +162,7 @@ std::vector<std::string> WritePngSequence(
   const std::vector<int> params = {cv::IMWRITE_PNG_COMPRESSION, 3};
   for (size_t i = 0; i < frames_rgb.size(); ++i) {
     char name[64];
-    std::snprintf(name, sizeof(name), "%04zu.png", i);
+    std::snprintf(name, sizeof(name), "%04zu.png", i + first_index);
     const std::string path =
         (std::filesystem::path(dir) / (prefix + name)).string();
     cv::cvtColor(frames_rgb[i], bgr, cv::COLOR_RGB2BGR);
@@ -146,9 +199,7 @@ cv::Mat MakeContactSheet(const std::vector<cv::Mat>& frames_rgb,
     }
   }
   const int tw = options.thumb_width;
-  const int th = std::max(
-      1, static_cast<int>(std::lround(static_cast<double>(frames_rgb[0].rows) *
-                                      tw / frames_rgb[0].cols)));
+  const int th = ThumbHeight(frames_rgb[0], tw);
   const int n = static_cast<int>(frames_rgb.size());
   const int cols = std::min(options.columns, n);
   const int grid_rows = (n + cols - 1) / cols;
@@ -172,6 +223,18 @@ cv::Mat MakeContactSheet(const std::vector<cv::Mat>& frames_rgb,
     }
   }
   return sheet;
+}
+
+cv::Mat ContactSheetThumbnail(const cv::Mat& frame_rgb,
+                              const ContactSheetOptions& options) {
+  options.Check();
+  GEODRIVE_CHECK_INPUT(!frame_rgb.empty(), "contact sheet: empty frame");
+  cv::Mat thumb;
+  cv::resize(frame_rgb, thumb,
+             cv::Size(options.thumb_width,
+                      ThumbHeight(frame_rgb, options.thumb_width)),
+             0, 0, cv::INTER_AREA);
+  return thumb;
 }
 
 cv::Mat ResizeBilinear(const cv::Mat& image, int width, int height) {

@@ -1,6 +1,7 @@
 #pragma once
 // Video and image outputs for rendered conditioning clips.
 
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -30,12 +31,37 @@ VideoWriteResult WriteVideo(const std::string& path,
                             const std::vector<cv::Mat>& frames_rgb,
                             const VideoWriteOptions& options = {});
 
+// WriteVideo one frame at a time (the H.264 path through H264Mp4Writer, the
+// fallback through OpenCV's VideoWriter): a long clip is never held whole.
+// Destroyed before Close() (an exception), it leaves no partial H.264 file.
+class VideoStreamWriter {
+ public:
+  // Opens `path` for frames of `width` x `height`; throws InputError naming
+  // the file when no codec can be opened.
+  VideoStreamWriter(const std::string& path, int width, int height,
+                    const VideoWriteOptions& options = {});
+  ~VideoStreamWriter();
+  VideoStreamWriter(const VideoStreamWriter&) = delete;
+  VideoStreamWriter& operator=(const VideoStreamWriter&) = delete;
+  // Appends one RGB CV_8UC3 frame of the opened size.
+  void Write(const cv::Mat& frame_rgb);
+  // Finishes the file; returns what was written.
+  VideoWriteResult Close();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 // Lossless PNG sequence `<dir>/<prefix>NNNN.png` (4-digit, from 0). Returns the
 // paths.
+// The files are numbered from `first_index` (streaming writers call it once
+// per chunk of frames).
 std::vector<std::string> WritePngSequence(
     const std::string& dir,
     const std::string& prefix,
-    const std::vector<cv::Mat>& frames_rgb);
+    const std::vector<cv::Mat>& frames_rgb,
+    int first_index = 0);
 
 struct ContactSheetOptions {
   int columns = 5;        // frames per row
@@ -49,6 +75,12 @@ struct ContactSheetOptions {
 cv::Mat MakeContactSheet(const std::vector<cv::Mat>& frames_rgb,
                          const std::vector<cv::Mat>& ground_truth_rgb = {},
                          const ContactSheetOptions& options = {});
+
+// The thumbnail MakeContactSheet draws for `frame_rgb` (INTER_AREA to
+// thumb_width, aspect kept). A sheet made of these thumbnails equals the
+// sheet made of the frames, so a streaming caller keeps only thumbnails.
+cv::Mat ContactSheetThumbnail(const cv::Mat& frame_rgb,
+                              const ContactSheetOptions& options = {});
 
 // Bilinear resize with align_corners=False semantics (PyTorch's F.interpolate,
 // OpenCV INTER_LINEAR).

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <fstream>
+
 #include "tests/common/test_util.h"
 
 namespace geodrive {
@@ -29,6 +32,47 @@ TEST(Cli, UnknownSubcommandExitsTwoWithOneLine) {
 }
 
 TEST(Cli, NoSubcommandExitsTwo) { EXPECT_EQ(RunCommand(GeodriveBinary()), 2); }
+
+// Issue 19: `refine-poses --threads 100000` segfaulted and `--threads 1000`
+// printed a raw libgomp error; every --threads is now checked where parsed.
+TEST(Cli, ThreadCountsAreCheckedWhereParsed) {
+  for (const std::string& args :
+       {std::string("refine-poses --monst3r /nonexistent --out /tmp/x.txt "
+                    "--threads 100000"),
+        std::string("refine-poses --monst3r /nonexistent --out /tmp/x.txt "
+                    "--threads 1000"),
+        std::string("render --cloud /nonexistent.ply --out /tmp/x "
+                    "--threads 1000"),
+        std::string("render --cloud /nonexistent.ply --out /tmp/x "
+                    "--threads 4x"),
+        std::string("build-dataset --dataroot /nonexistent --out /tmp/x "
+                    "--threads 0"),
+        std::string("eval --pred a --gt b --out r.json --threads -1")}) {
+    std::string out;
+    EXPECT_EQ(RunCommand(GeodriveBinary() + " " + args, &out), 2) << args;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_NE(out.find("--threads"), std::string::npos) << out;
+  }
+}
+
+// Issue 19: an output folder that cannot be created was "internal error"
+// (exit 1), and `eval` found out only after computing every metric. Here the
+// folder would have to be created under a regular file.
+TEST(Cli, UnusableOutputFolderIsBadInputFoundFirst) {
+  const std::string file = test::MakeTempDir("cli_out") + "/a_file";
+  std::ofstream(file) << "x";
+  for (const std::string& args :
+       {"render --cloud /nonexistent.ply --trajectory /nonexistent.json --out " +
+            file + "/sub",
+        "eval --pred /nonexistent --gt /nonexistent --out " + file +
+            "/sub/report.json",
+        "clips --dataroot /nonexistent --out " + file + "/sub"}) {
+    std::string out;
+    EXPECT_EQ(RunCommand(GeodriveBinary() + " " + args, &out), 2) << args;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_NE(out.find(file + "/sub"), std::string::npos) << out;
+  }
+}
 
 }  // namespace
 }  // namespace geodrive

@@ -1,6 +1,7 @@
 #include "geometry/monst3r.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <cmath>
 #include <filesystem>
@@ -167,8 +168,52 @@ TEST(Monst3rFolder, AllMinusInfConfidence) {
   WriteNpy(dir + "/conf_1.npy", NpyArray::Float32({36, 64}, inf.data()));
   const Monst3rFolder folder = Monst3rFolder::Open(dir);
   ExpectInputError([&] { folder.LoadFrame(1); },
-                   "conf_1.npy: confidence is -inf");
+                   "conf_1.npy: confidence is not finite at any pixel (-inf");
   ExpectInputError([&] { folder.LoadFrames({0, 1, 2}); }, "conf_1.npy");
+}
+
+// Issue 19: the message said "-inf (or NaN)" for a map of +inf.
+TEST(Monst3rFolder, AllPlusInfConfidenceSaysPlusInf) {
+  const std::string dir = WriteSmallFolder("monst3r_pinf");
+  std::vector<float> inf(64 * 36, std::numeric_limits<float>::infinity());
+  WriteNpy(dir + "/conf_1.npy", NpyArray::Float32({36, 64}, inf.data()));
+  const Monst3rFolder folder = Monst3rFolder::Open(dir);
+  ExpectInputError([&] { folder.LoadFrame(1); },
+                   "conf_1.npy: confidence is not finite at any pixel (+inf");
+}
+
+// Issue 19: a confidence map of the wrong (huge) shape was allocated and read
+// before its shape was compared with the depth map's. The header alone now
+// refuses it: a 31623 x 31623 float32 map (4 GB declared) whose data is a
+// sparse file, so the test writes 80 bytes of header and seeks.
+TEST(Monst3rFolder, HugeConfidenceMapRefusedFromItsHeader) {
+  const std::string dir = WriteSmallFolder("monst3r_hugeconf");
+  const std::string path = dir + "/conf_0.npy";
+  std::string header =
+      "{'descr': '<f4', 'fortran_order': False, 'shape': (31623, 31623), }";
+  header.resize(117, ' ');
+  header += "\n";
+  std::string preamble = "\x93NUMPY";
+  preamble += '\x01';
+  preamble += '\x00';
+  preamble += static_cast<char>(header.size() & 0xff);
+  preamble += static_cast<char>(header.size() >> 8);
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << preamble << header;
+  }
+  std::filesystem::resize_file(path, 128 + uint64_t{31623} * 31623 * 4);
+  const Monst3rFolder folder = Monst3rFolder::Open(dir);
+  rusage before{};
+  getrusage(RUSAGE_SELF, &before);
+  ExpectInputError([&] { folder.LoadFrame(0); },
+                   "conf_0.npy: shape 31623x31623 (HxW) differs from the "
+                   "depth map");
+  rusage after{};
+  getrusage(RUSAGE_SELF, &after);
+  // ru_maxrss is in KiB: nothing near the 4 GB the header declares.
+  EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 100 * 1024);
+  std::filesystem::remove(path);
 }
 
 TEST(Monst3rConfidence, UnitMapping) {
