@@ -1,0 +1,195 @@
+#!/usr/bin/python3
+"""Writes the seed corpora of the fuzz targets into fuzz/corpus/<target>/.
+
+Run once with Debian's /usr/bin/python3 (numpy, python3-opencv) from the
+repository root, with a built `geodrive` for the nuScenes tables:
+    /usr/bin/python3 fuzz/make_seeds.py build/apps/geodrive
+The seeds are small valid (and a few nearly valid) files of every layout each
+reader accepts; they are committed, so CI does not run this script.
+"""
+import json
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+
+import cv2
+import numpy as np
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "corpus")
+
+
+def out(target, name, data):
+    d = os.path.join(ROOT, target)
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, name), "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode())
+
+
+def npy_bytes(array, **kw):
+    import io
+    b = io.BytesIO()
+    np.lib.format.write_array(b, array, **kw)
+    return b.getvalue()
+
+
+def npy_seeds():
+    rng = np.random.default_rng(7)
+    out("npy", "f4_2d.npy", npy_bytes(rng.random((4, 6), dtype=np.float32)))
+    out("npy", "f8_3d.npy", npy_bytes(rng.random((3, 2, 3))))
+    out("npy", "u1.npy", npy_bytes(np.arange(12, dtype=np.uint8).reshape(3, 4)))
+    out("npy", "bool.npy", npy_bytes(np.array([True, False, True])))
+    out("npy", "i8_fortran.npy",
+        npy_bytes(np.asfortranarray(np.arange(6, dtype=np.int64).reshape(2, 3))))
+    out("npy", "be_f4.npy", npy_bytes(np.arange(5, dtype=">f4")))
+    out("npy", "v2.npy", npy_bytes(np.zeros((2, 2), np.float32), version=(2, 0)))
+    out("npy", "u2.npy", npy_bytes(np.arange(4, dtype=np.uint16)))
+    out("npy", "i4_scalar.npy", npy_bytes(np.array(3, dtype=np.int32)))
+
+
+PTS = np.array([[0.5, -1.25, 3.0], [1.0, 2.0, 4.5], [-0.25, 0.75, 9.0]],
+               np.float32)
+RGB = np.array([[255, 0, 10], [0, 128, 255], [7, 8, 9]], np.uint8)
+
+
+def ply_seeds():
+    head = "ply\nformat {}\ncomment seed\nelement vertex 3\n" \
+           "property float x\nproperty float y\nproperty float z\n" \
+           "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    body = "".join("%g %g %g %d %d %d\n" % (*p, *c) for p, c in zip(PTS, RGB))
+    out("ply", "ascii.ply", head.format("ascii 1.0") + "end_header\n" + body)
+    for fmt, e in (("binary_little_endian 1.0", "<"), ("binary_big_endian 1.0", ">")):
+        data = b"".join(struct.pack(e + "fffBBB", *p, *c) for p, c in zip(PTS, RGB))
+        name = "le.ply" if e == "<" else "be.ply"
+        out("ply", name, (head.format(fmt) + "end_header\n").encode() + data)
+    # double coordinates, shuffled properties, extra scalar, a face element.
+    head2 = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+             "property uchar red\nproperty double z\nproperty float confidence\n"
+             "property double x\nproperty uchar green\nproperty double y\n"
+             "property uchar blue\nproperty int instance_id\n"
+             "element face 1\nproperty list uchar int vertex_indices\n"
+             "end_header\n")
+    data = b"".join(struct.pack("<BdfdBdBi", c[0], p[2], 0.5, p[0], c[1], p[1],
+                                c[2], i) for i, (p, c) in enumerate(zip(PTS, RGB)))
+    data += struct.pack("<Biii", 3, 0, 1, 2)
+    out("ply", "mixed.ply", head2.encode() + data)
+
+
+def lzf_literals(raw):
+    """LZF stream made of literal runs only (valid input for lzf_decompress)."""
+    o = bytearray()
+    for i in range(0, len(raw), 32):
+        chunk = raw[i:i + 32]
+        o.append(len(chunk) - 1)
+        o += chunk
+    return bytes(o)
+
+
+def pcd_seeds():
+    def header(fields, size, typ, count, n, data):
+        return ("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
+                "FIELDS %s\nSIZE %s\nTYPE %s\nCOUNT %s\nWIDTH %d\nHEIGHT 1\n"
+                "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS %d\nDATA %s\n"
+                % (fields, size, typ, count, n, n, data))
+    rgb = [struct.unpack("<f", struct.pack("<I", (int(c[0]) << 16) |
+                                           (int(c[1]) << 8) | int(c[2])))[0]
+           for c in RGB]
+    body = "".join("%g %g %g %.9g 0.5\n" % (*p, r) for p, r in zip(PTS, rgb))
+    out("pcd", "ascii.pcd",
+        header("x y z rgb intensity", "4 4 4 4 4", "F F F F F", "1 1 1 1 1", 3,
+               "ascii") + body)
+    recs = b"".join(struct.pack("<ffffI", *p, r, 7) for p, r in zip(PTS, rgb))
+    out("pcd", "binary.pcd",
+        header("x y z rgb ring", "4 4 4 4 4", "F F F F U", "1 1 1 1 1", 3,
+               "binary").encode() + recs)
+    # binary_compressed: field-major (SoA) data, then LZF.
+    soa = b"".join(struct.pack("<3f", *PTS[:, k]) for k in range(3))
+    soa += struct.pack("<3f", *rgb)
+    comp = lzf_literals(soa)
+    out("pcd", "compressed.pcd",
+        header("x y z rgb", "4 4 4 4", "F F F F", "1 1 1 1", 3,
+               "binary_compressed").encode() +
+        struct.pack("<II", len(comp), len(soa)) + comp)
+
+
+def bin_seeds():
+    five = np.array([[1, 2, 3, 0.5, 7], [4, 5, 6, 1.0, 31]], np.float32)
+    out("lidar_bin", "nuscenes.pcd.bin", five.tobytes())
+    out("lidar_bin", "kitti.bin", five[:, :4].tobytes())
+
+
+def text_seeds():
+    out("trajectory_text", "pred_traj.txt",
+        "0.0 0 0 0 1 0 0 0\n0.1 0.1 0 0.5 0.99875 0 0.04998 0\n"
+        "0.2 0.2 0.01 1.0 0.995 0 0.0998 0\n")
+    out("trajectory_text", "tum.txt",
+        "# timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n"
+        "1.5 0.1 0.2 0.3 0 0.0499792 0 0.99875\n")
+    out("trajectory_text", "intrinsics.txt",
+        "256.0 0 256.0 0 256.0 144.0 0 0 1\n256.0 0 256.0 0 256.0 144.0 0 0 1\n")
+
+
+def json_seeds():
+    traj = {"format": "geodrive-trajectory", "version": 1,
+            "convention": "world_from_cam", "units": "metres",
+            "camera": {"fx": 500.0, "fy": 500.0, "cx": 359.5, "cy": 239.5,
+                       "width": 720, "height": 480},
+            "frames": [{"t": 0.0, "position": [0, 0, 0],
+                        "quaternion_wxyz": [1, 0, 0, 0]},
+                       {"t": 0.1, "position": [0, 0, 1],
+                        "quaternion_wxyz": [1, 0, 0, 0]}]}
+    out("trajectory_json", "trajectory.json", json.dumps(traj, indent=1))
+    boxes = {"format": "geodrive-boxes", "version": 1, "image_width": 1600,
+             "image_height": 900, "num_frames": 2, "units": "metres",
+             "instances": [{"id": "car-1", "category": "vehicle.car",
+                            "frames": [{"frame": 0, "box_2d": [100, 200, 300, 400],
+                                        "box_3d": {"center": [0, 0, 10],
+                                                   "size": [1.8, 4.5, 1.5],
+                                                   "rotation_wxyz": [1, 0, 0, 0]},
+                                        "visibility": 0.8},
+                                       {"frame": 1, "box_2d": [110, 200, 310, 400]}]}]}
+    out("boxes_json", "boxes.json", json.dumps(boxes, indent=1))
+
+
+def image_seeds():
+    rng = np.random.default_rng(3)
+    img = (rng.random((24, 32, 3)) * 255).astype(np.uint8)
+    out("image", "rgb.png", cv2.imencode(".png", img)[1].tobytes())
+    out("image", "gray16.png",
+        cv2.imencode(".png", (rng.random((8, 8)) * 65535).astype(np.uint16))[1].tobytes())
+    out("image", "rgba.png",
+        cv2.imencode(".png", np.dstack([img, img[:, :, :1]]))[1].tobytes())
+    out("image", "q90.jpg", cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes())
+    out("image", "gray.jpg", cv2.imencode(".jpg", img[:, :, 0])[1].tobytes())
+    out("image", "progressive.jpg",
+        cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes())
+
+
+def nuscenes_seeds(geodrive):
+    tables = ["attribute", "calibrated_sensor", "category", "ego_pose",
+              "instance", "log", "map", "sample", "sample_annotation",
+              "sample_data", "scene", "sensor", "visibility"]
+    tmp = tempfile.mkdtemp()
+    try:
+        subprocess.run([geodrive, "synth", "--out", tmp, "--scenes", "1",
+                        "--duration", "1", "--tables-only"], check=True,
+                       stdout=subprocess.DEVNULL)
+        for i, t in enumerate(tables):
+            with open(os.path.join(tmp, "v1.0-mini", t + ".json"), "rb") as f:
+                out("nuscenes_tables", "%02d_%s" % (i, t), bytes([i]) + f.read())
+    finally:
+        shutil.rmtree(tmp)
+
+
+if __name__ == "__main__":
+    npy_seeds()
+    ply_seeds()
+    pcd_seeds()
+    bin_seeds()
+    text_seeds()
+    json_seeds()
+    image_seeds()
+    if len(sys.argv) > 1:
+        nuscenes_seeds(sys.argv[1])
