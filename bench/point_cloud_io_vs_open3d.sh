@@ -9,7 +9,7 @@
 #   bash bench/point_cloud_io_vs_open3d.sh [BUILD_DIR]     (default: build)
 #
 # Environment: GEODRIVE_BENCH_PCIO_DIR (files; default
-# /tmp/geodrive_bench_point_cloud_io, about 1.2 GB), REPS (ours: benchmark
+# /tmp/geodrive_bench_point_cloud_io, about 0.9 GB), REPS (ours: benchmark
 # repetitions, median taken; Open3D: best of REPS runs; default 3).
 set -euo pipefail
 
