@@ -38,6 +38,7 @@ int RunFuse(FuseArgs a) {
   a.filter.mask_kind =
       a.mask == "plain" ? DynamicMaskKind::kPlain : DynamicMaskKind::kEnlarged;
   a.fusion.statistical_outlier_removal = !a.no_sor;
+  CheckOutputFileOutsideInput(a.out, a.monst3r);
   a.filter.Check();
   a.fusion.Check();
   const Monst3rFolder folder = Monst3rFolder::Open(a.monst3r);

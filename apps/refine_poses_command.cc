@@ -45,15 +45,8 @@ int RunRefine(RefineArgs a) {
   // the folder it reads (pred_traj.txt above all).
   const std::string summary_out =
       a.summary.empty() ? a.out + ".json" : a.summary;
-  for (const std::string& out : {a.out, summary_out}) {
-    std::error_code ec;
-    const auto parent = std::filesystem::absolute(out).parent_path();
-    GEODRIVE_CHECK_INPUT(
-        !std::filesystem::equivalent(parent, a.monst3r, ec), out,
-        ": is inside the input folder ", a.monst3r,
-        " (it would overwrite or mix with the MonST3R outputs): write it "
-        "elsewhere");
-  }
+  for (const std::string& out : {a.out, summary_out})
+    CheckOutputFileOutsideInput(out, a.monst3r);
   const std::vector<int> frames = ParseFrameList(a.frames, folder.num_frames());
   if (!folder.has_raw_pointmaps()) {
     std::cerr << "note: " << a.monst3r

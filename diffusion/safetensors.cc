@@ -53,33 +53,11 @@ const DtypeInfo* FindDtype(at::ScalarType type) {
   return nullptr;
 }
 
-std::string ShapeString(const std::vector<int64_t>& shape) {
-  std::ostringstream os;
-  os << "[";
-  for (size_t i = 0; i < shape.size(); ++i) os << (i ? ", " : "") << shape[i];
-  os << "]";
-  return os.str();
-}
-
 bool IsLittleEndianHost() {
   const uint16_t probe = 1;
   uint8_t first;
   std::memcpy(&first, &probe, 1);
   return first == 1;
-}
-
-// Reads a non-negative integer that fits int64 from a JSON value.
-bool AsNonNegative(const json& v, uint64_t* out) {
-  if (v.is_number_unsigned()) {
-    *out = v.get<uint64_t>();
-  } else if (v.is_number_integer()) {
-    const int64_t s = v.get<int64_t>();
-    if (s < 0) return false;
-    *out = static_cast<uint64_t>(s);
-  } else {
-    return false;
-  }
-  return *out <= static_cast<uint64_t>(INT64_MAX);
 }
 
 std::string DirName(const std::string& path) {
@@ -90,102 +68,6 @@ std::string DirName(const std::string& path) {
 bool EndsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() &&
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-}  // namespace
-
-const std::vector<std::string>& SafetensorsDtypeNames() {
-  static const std::vector<std::string> names = [] {
-    std::vector<std::string> n;
-    for (const auto& d : DtypeTable()) n.push_back(d.name);
-    return n;
-  }();
-  return names;
-}
-
-namespace {
-
-// One tensor record of the header, checked against the data buffer.
-SafetensorsEntry ParseTensorEntry(const std::string& path,
-                                  const std::string& name,
-                                  const json& v,
-                                  uint64_t buffer_size) {
-  if (!v.is_object() || !v.contains("dtype") || !v.contains("shape") ||
-      !v.contains("data_offsets")) {
-    ThrowInputError(path, "tensor '", name,
-                    "' needs dtype, shape and data_offsets");
-  }
-  SafetensorsEntry e;
-  e.name = name;
-  e.file = path;
-  if (!v["dtype"].is_string())
-    ThrowInputError(path, "tensor '", name, "' dtype is not a string");
-  e.dtype = v["dtype"].get<std::string>();
-  const DtypeInfo* dt = FindDtype(e.dtype);
-  if (dt == nullptr) {
-    ThrowInputError(path, "tensor '", name, "' has unsupported dtype '",
-                    e.dtype,
-                    "' (supported: F64 F32 F16 BF16 I64 I32 I16 I8 U8 BOOL)");
-  }
-  if (!v["shape"].is_array())
-    ThrowInputError(path, "tensor '", name, "' shape is not a list");
-  uint64_t numel = 1;
-  bool overflow = false;
-  for (const auto& d : v["shape"]) {
-    uint64_t dim;
-    if (!AsNonNegative(d, &dim)) {
-      ThrowInputError(path, "tensor '", name, "' has an invalid shape entry ",
-                      d.dump());
-    }
-    e.shape.push_back(static_cast<int64_t>(dim));
-    overflow |= __builtin_mul_overflow(numel, dim, &numel);
-  }
-  const json& off = v["data_offsets"];
-  if (!off.is_array() || off.size() != 2 || !AsNonNegative(off[0], &e.begin) ||
-      !AsNonNegative(off[1], &e.end)) {
-    ThrowInputError(path, "tensor '", name,
-                    "' data_offsets must be two non-negative integers");
-  }
-  if (e.end < e.begin)
-    ThrowInputError(path, "tensor '", name, "' has data_offsets end < begin");
-  if (e.end > buffer_size) {
-    ThrowInputError(path, "tensor '", name, "' data_offsets [", e.begin, ", ",
-                    e.end, ") lie outside the ", buffer_size,
-                    "-byte data buffer");
-  }
-  uint64_t bytes = 0;
-  overflow |= __builtin_mul_overflow(numel, static_cast<uint64_t>(dt->itemsize),
-                                     &bytes);
-  if (overflow || bytes != e.end - e.begin) {
-    ThrowInputError(path, "tensor '", name, "' of dtype ", e.dtype,
-                    " and shape ", ShapeString(e.shape), " needs ",
-                    overflow ? std::string("too many") : std::to_string(bytes),
-                    " bytes but data_offsets span ", e.end - e.begin);
-  }
-  return e;
-}
-
-// The tensors (sorted by offset) tile the data buffer exactly: no overlap, no
-// hole, no trailing bytes.
-void CheckContiguous(const std::string& path,
-                     const std::vector<SafetensorsEntry>& entries,
-                     uint64_t buffer_size) {
-  uint64_t cursor = 0;
-  for (const auto& e : entries) {
-    if (e.begin < cursor) {
-      ThrowInputError(path, "tensor '", e.name, "' data_offsets [", e.begin,
-                      ", ", e.end, ") overlap the previous tensor");
-    }
-    if (e.begin > cursor) {
-      ThrowInputError(path, "data buffer has a hole at bytes [", cursor, ", ",
-                      e.begin, ") before tensor '", e.name, "'");
-    }
-    cursor = e.end;
-  }
-  if (cursor != buffer_size) {
-    ThrowInputError(path, "data buffer has ", buffer_size - cursor,
-                    " trailing bytes not covered by any tensor");
-  }
 }
 
 }  // namespace
@@ -202,8 +84,7 @@ SafetensorsFile::SafetensorsFile(const std::string& path) : path_(path) {
     ThrowInputError(path, "not a regular file");
   }
   map_size_ = static_cast<uint64_t>(st.st_size);
-  // From here on, failures must release the fd/map: validate inside a lambda
-  // and clean up.
+  // From here on, failures must release the fd/map.
   try {
     if (map_size_ < 8)
       ThrowInputError(path, "truncated safetensors file (", map_size_,
@@ -212,71 +93,10 @@ SafetensorsFile::SafetensorsFile(const std::string& path) : path_(path) {
     if (m == MAP_FAILED)
       ThrowInputError(path, "mmap failed (", std::strerror(errno), ")");
     map_ = static_cast<const uint8_t*>(m);
-
-    uint64_t n = 0;
-    for (int i = 7; i >= 0; --i) n = (n << 8) | map_[i];  // little-endian u64
-    if (n < 2)
-      ThrowInputError(path, "safetensors header length ", n, " is too small");
-    if (n > kSafetensorsMaxHeaderBytes) {
-      ThrowInputError(path, "safetensors header length ", n, " exceeds the ",
-                      kSafetensorsMaxHeaderBytes, "-byte limit");
-    }
-    if (n > map_size_ - 8) {
-      ThrowInputError(path, "safetensors header length ", n,
-                      " runs past the end of the ", map_size_, "-byte file");
-    }
-    data_start_ = 8 + n;
-    const char* header = reinterpret_cast<const char*>(map_ + 8);
-    if (header[0] != '{')
-      ThrowInputError(path, "safetensors header does not start with '{'");
-
-    // Parse, detecting duplicate top-level keys (nlohmann keeps the last one
-    // silently).
-    std::set<std::string> seen_keys;
-    std::string duplicate;
-    json::parser_callback_t cb = [&](int depth, json::parse_event_t event,
-                                     json& parsed) {
-      if (depth == 1 && event == json::parse_event_t::key) {
-        const std::string key = parsed.get<std::string>();
-        if (!seen_keys.insert(key).second && duplicate.empty()) duplicate = key;
-      }
-      return true;
-    };
-    json doc;
-    try {
-      doc = json::parse(header, header + n, cb);
-    } catch (const json::exception& e) {
-      ThrowInputError(path, "safetensors header is not valid JSON (", e.what(),
-                      ")");
-    }
-    if (!duplicate.empty())
-      ThrowInputError(path, "duplicate tensor name '", duplicate, "'");
-    if (!doc.is_object())
-      ThrowInputError(path, "safetensors header is not a JSON object");
-
-    const uint64_t buffer_size = map_size_ - data_start_;
-    for (auto it = doc.begin(); it != doc.end(); ++it) {
-      const std::string& name = it.key();
-      const json& v = it.value();
-      if (name == "__metadata__") {
-        if (!v.is_object())
-          ThrowInputError(path, "__metadata__ is not an object");
-        for (auto m = v.begin(); m != v.end(); ++m) {
-          if (!m.value().is_string()) {
-            ThrowInputError(path, "__metadata__ value of '", m.key(),
-                            "' is not a string");
-          }
-          metadata_[m.key()] = m.value().get<std::string>();
-        }
-        continue;
-      }
-      entries_.push_back(ParseTensorEntry(path, name, v, buffer_size));
-    }
-    std::sort(entries_.begin(), entries_.end(),
-              [](const auto& a, const auto& b) {
-                return a.begin != b.begin ? a.begin < b.begin : a.end < b.end;
-              });
-    CheckContiguous(path, entries_, buffer_size);
+    SafetensorsHeader header = ParseSafetensorsHeader(path, map_, map_size_);
+    data_start_ = header.data_start;
+    entries_ = std::move(header.entries);
+    metadata_ = std::move(header.metadata);
     for (size_t i = 0; i < entries_.size(); ++i) index_[entries_[i].name] = i;
   } catch (...) {
     if (map_ != nullptr) ::munmap(const_cast<uint8_t*>(map_), map_size_);

@@ -17,23 +17,10 @@
 #include <utility>
 #include <vector>
 
+#include "diffusion/format/safetensors_header.h"
+
 namespace geodrive {
 namespace diffusion {
-
-// Header limit of the reference implementation (100 MB).
-constexpr uint64_t kSafetensorsMaxHeaderBytes = 100u * 1000u * 1000u;
-
-// One tensor of a safetensors header.
-struct SafetensorsEntry {
-  std::string name;
-  std::string dtype;  // "F32", "BF16", ... (see SafetensorsDtypeNames()).
-  std::vector<int64_t> shape;   // empty = 0-rank scalar
-  uint64_t begin = 0, end = 0;  // byte range in the data buffer
-  std::string file;  // the file holding it (the shard, for sharded checkpoints)
-};
-
-// The dtype names this reader accepts (those with a LibTorch 1.13 equivalent).
-const std::vector<std::string>& SafetensorsDtypeNames();
 
 // A validated, memory-mapped safetensors file; tensors are copied out on
 // Load().

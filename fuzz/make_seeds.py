@@ -167,6 +167,28 @@ def image_seeds():
         cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes())
 
 
+def safetensors_seeds():
+    def st(tensors, metadata=None):
+        header, buf = {}, b""
+        for name, dtype, shape, data in tensors:
+            header[name] = {"dtype": dtype, "shape": shape,
+                            "data_offsets": [len(buf), len(buf) + len(data)]}
+            buf += data
+        if metadata:
+            header["__metadata__"] = metadata
+        h = json.dumps(header).encode()
+        h += b" " * (-(8 + len(h)) % 8)
+        return struct.pack("<Q", len(h)) + h + buf
+    out("safetensors", "f32.safetensors",
+        st([("w", "F32", [2, 2], np.arange(4, dtype="<f4").tobytes())],
+           {"format": "pt"}))
+    out("safetensors", "mixed.safetensors",
+        st([("a", "BF16", [3], b"\x80\x3f" * 3),
+            ("b", "I64", [], struct.pack("<q", -5)),
+            ("c", "BOOL", [2], b"\x01\x00"),
+            ("d", "F16", [0, 4], b"")]))
+
+
 def nuscenes_seeds(geodrive):
     tables = ["attribute", "calibrated_sensor", "category", "ego_pose",
               "instance", "log", "map", "sample", "sample_annotation",
@@ -191,5 +213,6 @@ if __name__ == "__main__":
     text_seeds()
     json_seeds()
     image_seeds()
+    safetensors_seeds()
     if len(sys.argv) > 1:
         nuscenes_seeds(sys.argv[1])

@@ -6,6 +6,7 @@
 #include <map>
 #include <new>
 
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -99,6 +100,19 @@ void ParseSizeHxW(const std::string& text,
   } catch (const std::logic_error&) {
     ThrowInputError(what, "expected HxW (height first), e.g. 480x720");
   }
+}
+
+void CheckOutputFileOutsideInput(const std::string& out,
+                                 const std::string& input_dir) {
+  GEODRIVE_CHECK_INPUT(!out.empty(), "the output path is empty");
+  const std::filesystem::path parent =
+      std::filesystem::absolute(out).parent_path();
+  std::error_code ec;
+  GEODRIVE_CHECK_INPUT(
+      !std::filesystem::equivalent(parent, input_dir, ec), out,
+      ": is inside the input folder ", input_dir,
+      " (it would overwrite or mix with its files): write it elsewhere");
+  CreateOutputDirectory(parent.string());
 }
 
 CLI::Validator ThreadCountValidator() {

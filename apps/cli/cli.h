@@ -75,6 +75,14 @@ void ParseSizeHxW(const std::string& text,
                   int* height,
                   int* width);
 
+// No command writes over its own inputs: throws InputError naming `out` when
+// the output file `out` would land inside `input_dir` (the folder a command
+// reads, e.g. a MonST3R folder, whose files it could overwrite or mix with).
+// Also creates `out`'s folder and checks it is writable
+// (CreateOutputDirectory), so an unusable output fails before any work.
+void CheckOutputFileOutsideInput(const std::string& out,
+                                 const std::string& input_dir);
+
 // The largest --threads any command accepts. OpenMP and std::thread teams
 // far beyond the core count only cost memory (libgomp fails to create them
 // somewhere above a thousand, with a raw message of its own).

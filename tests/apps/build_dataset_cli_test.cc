@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -320,6 +322,22 @@ TEST(RefinePosesCli, RefusesToWriteIntoItsInputFolder) {
   EXPECT_EQ(rc, 2) << log;
   EXPECT_NE(log.find("is inside the input folder"), std::string::npos) << log;
   EXPECT_EQ(ReadAll(dir + "/pred_traj.txt"), before);
+}
+
+// Issue 19: `fuse --out` inside the MonST3R folder is refused the same way (a
+// cloud named like an input there would overwrite it or mix with its files).
+TEST(FuseCli, RefusesToWriteIntoItsInputFolder) {
+  const std::string dir = test::MakeTempDir("cli_fuse_inplace");
+  fs::copy(World() + "/monst3r/scene-0001_0000", dir,
+           fs::copy_options::recursive);
+  std::string log;
+  const int rc = RunCommand(GeodriveBinary() + " fuse --monst3r " + dir +
+                                " --out " + dir + "/cloud.ply",
+                            &log);
+  EXPECT_EQ(rc, 2) << log;
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+  EXPECT_NE(log.find("is inside the input folder"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir + "/cloud.ply"));
 }
 
 }  // namespace

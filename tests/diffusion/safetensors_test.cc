@@ -7,6 +7,8 @@
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -87,6 +89,18 @@ TEST(Safetensors, RoundTripAllDtypesExact) {
   NamedTensors all = LoadSafetensors(path);
   ASSERT_EQ(all.size(), in.size());
   EXPECT_EQ(all.front().first, "bf16");
+  // The torch-free header parser (diffusion/format/) accepts exactly the
+  // dtypes the LibTorch loader maps, with their element sizes.
+  std::set<std::string> written;
+  for (const SafetensorsEntry& e : f.entries()) {
+    written.insert(e.dtype);
+    const at::Tensor t = f.Load(e.name);
+    EXPECT_EQ(SafetensorsDtypeSize(e.dtype),
+              static_cast<int64_t>(t.element_size()))
+        << e.dtype;
+  }
+  EXPECT_EQ(written, std::set<std::string>(SafetensorsDtypeNames().begin(),
+                                           SafetensorsDtypeNames().end()));
 }
 
 TEST(Safetensors, IndependentPythonWriterLoadsExactly) {
