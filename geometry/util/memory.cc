@@ -15,12 +15,31 @@
 #include <malloc.h>
 #endif
 
+// Under AddressSanitizer malloc is the sanitizer's, not glibc's (mallopt is a
+// no-op that fails): the policy does not apply.
+#if defined(__SANITIZE_ADDRESS__)
+#define GEODRIVE_GLIBC_MALLOC 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define GEODRIVE_GLIBC_MALLOC 0
+#endif
+#endif
+#if !defined(GEODRIVE_GLIBC_MALLOC)
+#if defined(__GLIBC__)
+#define GEODRIVE_GLIBC_MALLOC 1
+#else
+#define GEODRIVE_GLIBC_MALLOC 0
+#endif
+#endif
+
 namespace geodrive {
+
+bool UsesGlibcMalloc() { return GEODRIVE_GLIBC_MALLOC != 0; }
 
 bool ConfigureAllocatorForThroughput() {
   const char* skip = std::getenv("GEODRIVE_MALLOC_DEFAULTS");
   if (skip != nullptr && std::strcmp(skip, "1") == 0) return false;
-#if defined(__GLIBC__)
+#if GEODRIVE_GLIBC_MALLOC
   // 32 MiB is glibc's largest mmap threshold on 64-bit (HEAP_MAX_SIZE / 2).
   const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, 32 << 20) == 1;
   const bool trim_ok = mallopt(M_TRIM_THRESHOLD, 1 << 30) == 1;
@@ -62,7 +81,8 @@ uint64_t CgroupValue(const char* file) {
 uint64_t AvailableMemoryBytes() {
   constexpr uint64_t kUnknown = std::numeric_limits<uint64_t>::max();
   uint64_t available = kUnknown;
-  const uint64_t mem_available = ProcKilobytes("/proc/meminfo", "MemAvailable:");
+  const uint64_t mem_available =
+      ProcKilobytes("/proc/meminfo", "MemAvailable:");
   if (mem_available > 0) available = mem_available;
   rlimit limit{};
   if (getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {

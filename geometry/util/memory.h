@@ -19,8 +19,12 @@
 namespace geodrive {
 
 // Applies the policy above (glibc mallopt); returns false where it is not
-// supported or was skipped by GEODRIVE_MALLOC_DEFAULTS=1.
+// supported (not glibc's malloc, e.g. under AddressSanitizer) or was skipped
+// by GEODRIVE_MALLOC_DEFAULTS=1. UsesGlibcMalloc() says which.
 bool ConfigureAllocatorForThroughput();
+// True when this build allocates through glibc's malloc (where the policy
+// applies).
+bool UsesGlibcMalloc();
 
 // Bytes this process can still allocate, as far as the system says: the
 // smallest of the memory the kernel reports available (/proc/meminfo
