@@ -21,9 +21,10 @@ inline cv::Vec3b SceneColor(const Eigen::Vector3d& p) {
   const int cx = static_cast<int>(std::floor(p.x() * 2)),
             cy = static_cast<int>(std::floor(p.y() * 2));
   const int cz = static_cast<int>(std::floor(p.z() * 2));
-  const uint32_t h = static_cast<uint32_t>(cx * 73856093) ^
-                     static_cast<uint32_t>(cy * 19349663) ^
-                     static_cast<uint32_t>(cz * 83492791);
+  // Unsigned (wrapping) products: the signed ones overflowed (UBSan).
+  const uint32_t h = static_cast<uint32_t>(cx) * 73856093u ^
+                     static_cast<uint32_t>(cy) * 19349663u ^
+                     static_cast<uint32_t>(cz) * 83492791u;
   const int checker = ((cx + cy + cz) & 1) ? 60 : 0;
   return cv::Vec3b(static_cast<uint8_t>(40 + checker + (h % 97)),
                    static_cast<uint8_t>(
