@@ -24,8 +24,8 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
-#include <thread>
 #include <sstream>
+#include <thread>
 
 #include "apps/cli/cli.h"
 #include "apps/cli/edit_args.h"
@@ -247,35 +247,39 @@ struct RenderMemoryPlan {
   int threads = 1;
 };
 RenderMemoryPlan PlanRenderMemory(const RenderOptions& options,
-                                  RenderPreset preset, int64_t num_points,
-                                  int num_frames, int requested_threads,
+                                  RenderPreset preset,
+                                  int64_t num_points,
+                                  int num_frames,
+                                  int requested_threads,
                                   bool whole_clip) {
   const int factor = PresetUpsampleFactor(preset);
   // A final (upsampled) RGB frame, and the encoder's padded copy and YUV.
-  const uint64_t final_bytes = uint64_t{3} * options.width * factor *
-                               options.height * factor;
+  const uint64_t final_bytes =
+      uint64_t{3} * options.width * factor * options.height * factor;
   auto need = [&](int chunk, int threads) {
     return EstimateRenderBytes(options, num_points, chunk, threads) +
            static_cast<uint64_t>(chunk) * final_bytes + 3 * final_bytes;
   };
   const uint64_t available = AvailableMemoryBytes();
-  const uint64_t budget = available == UINT64_MAX ? available
-                                                  : available / 10 * 8;
-  const int hw = static_cast<int>(
-      std::max(1u, std::thread::hardware_concurrency()));
+  const uint64_t budget =
+      available == UINT64_MAX ? available : available / 10 * 8;
+  const int hw =
+      static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   RenderMemoryPlan plan;
-  plan.threads = std::min(requested_threads > 0 ? requested_threads : hw,
-                          num_frames);
+  plan.threads =
+      std::min(requested_threads > 0 ? requested_threads : hw, num_frames);
   auto gib = [](uint64_t b) { return Fixed(b / double(1ull << 30), 2); };
   if (whole_clip) {
     plan.chunk = num_frames;
     while (plan.threads > 1 && need(plan.chunk, plan.threads) > budget)
       --plan.threads;
     GEODRIVE_CHECK_INPUT(
-        need(plan.chunk, plan.threads) <= budget, "render: dynamic editing "
-        "holds all ", num_frames, " frames of ", options.width, "x",
-        options.height, ": about ", gib(need(plan.chunk, 1)),
-        " GiB, more than the ", gib(budget),
+        need(plan.chunk, plan.threads) <= budget,
+        "render: dynamic editing "
+        "holds all ",
+        num_frames, " frames of ", options.width, "x", options.height,
+        ": about ", gib(need(plan.chunk, 1)), " GiB, more than the ",
+        gib(budget),
         " GiB this process may use (fewer frames or a smaller --size)");
     return plan;
   }
@@ -286,8 +290,8 @@ RenderMemoryPlan PlanRenderMemory(const RenderOptions& options,
   }
   while (plan.threads > 1 && need(plan.chunk, plan.threads) > budget)
     --plan.threads;
-  GEODRIVE_CHECK_INPUT(need(1, 1) <= budget, "render: one ", options.width,
-                       "x", options.height, " ", ToString(options.mode),
+  GEODRIVE_CHECK_INPUT(need(1, 1) <= budget, "render: one ", options.width, "x",
+                       options.height, " ", ToString(options.mode),
                        " frame from ", num_points, " points needs about ",
                        gib(need(1, 1)), " GiB, more than the ", gib(budget),
                        " GiB this process may use (a smaller --size)");
@@ -295,8 +299,10 @@ RenderMemoryPlan PlanRenderMemory(const RenderOptions& options,
 }
 
 // Accumulates per-frame statistics into the summary RenderFrames gives.
-void AddToSummary(const RenderedFrame& frame, int index,
-                  RenderSummary* summary, std::vector<FrameStats>* stats) {
+void AddToSummary(const RenderedFrame& frame,
+                  int index,
+                  RenderSummary* summary,
+                  std::vector<FrameStats>* stats) {
   FrameStats s;
   s.coverage = frame.coverage();
   s.num_valid = frame.num_valid;
@@ -363,8 +369,8 @@ int RunRender(RenderArgs a) {
                        a.threads, /*whole_clip=*/dynamic);
   RenderOptions options = base_options;
   // Threads: as asked (0 = OpenMP's default), fewer only when memory says so.
-  const int hw = static_cast<int>(
-      std::max(1u, std::thread::hardware_concurrency()));
+  const int hw =
+      static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (a.threads > 0 || plan.threads < std::min(hw, num_frames))
     options.num_threads = plan.threads;
   // Frame 0 is replaced by the real image only in the compat preset (the
@@ -375,9 +381,8 @@ int RunRender(RenderArgs a) {
   const cv::Size output_size(options.width * factor, options.height * factor);
   // Contact-sheet frames: every frame, or kMaxContactSheetFrames evenly spaced.
   std::vector<char> on_sheet(num_frames, num_frames <= kMaxContactSheetFrames);
-  for (int k = 0; num_frames > kMaxContactSheetFrames &&
-                  k < kMaxContactSheetFrames;
-       ++k) {
+  for (int k = 0;
+       num_frames > kMaxContactSheetFrames && k < kMaxContactSheetFrames; ++k) {
     on_sheet[static_cast<int64_t>(k) * (num_frames - 1) /
              (kMaxContactSheetFrames - 1)] = 1;
   }
@@ -410,8 +415,8 @@ int RunRender(RenderArgs a) {
       RenderFramesInto(cloud, {camera}, poses, options, &chunk);
     }
     summary.seconds += chunk.summary.seconds;
-    const std::vector<cv::Mat> frames = FinalFrames(
-        chunk, preset, start == 0 ? frame0_replacement : cv::Mat());
+    const std::vector<cv::Mat> frames =
+        FinalFrames(chunk, preset, start == 0 ? frame0_replacement : cv::Mat());
     for (int i = 0; i < end - start; ++i) {
       AddToSummary(chunk.frames[i], start + i, &summary, &stats);
       if (video) video->Write(frames[i]);
@@ -425,8 +430,8 @@ int RunRender(RenderArgs a) {
       }
     }
     if (a.frames) {
-      WritePngSequence((fs::path(a.out) / "frames").string(), "render_",
-                       frames, start);
+      WritePngSequence((fs::path(a.out) / "frames").string(), "render_", frames,
+                       start);
     }
   }
   summary.mean_coverage /= std::max(1, summary.num_frames);
@@ -586,7 +591,8 @@ CommandRunner SetupRender(CLI::App& app) {
   app.add_flag("--frames", a->frames,
                "Also write the lossless PNG sequence frames/render_NNNN.png");
   app.add_flag("--no-video", a->no_video, "Do not write render.mp4");
-  app.add_option("--threads", a->threads, "Threads (0 = all cores, at most 256)")
+  app.add_option("--threads", a->threads,
+                 "Threads (0 = all cores, at most 256)")
       ->check(ThreadCountValidator());
   app.add_option(
       "--boxes", a->dynamic.boxes_path,

@@ -16,11 +16,19 @@
 
 namespace {
 
-const char* const kTables[] = {
-    "attribute",         "calibrated_sensor", "category", "ego_pose",
-    "instance",          "log",               "map",      "sample",
-    "sample_annotation", "sample_data",       "scene",    "sensor",
-    "visibility"};
+const char* const kTables[] = {"attribute",
+                               "calibrated_sensor",
+                               "category",
+                               "ego_pose",
+                               "instance",
+                               "log",
+                               "map",
+                               "sample",
+                               "sample_annotation",
+                               "sample_data",
+                               "scene",
+                               "sensor",
+                               "visibility"};
 constexpr int kNumTables = sizeof(kTables) / sizeof(kTables[0]);
 
 struct Dataroot {
@@ -39,8 +47,7 @@ Dataroot& Base() {
     geodrive::WriteSyntheticDataset(options, d.root);
     d.version_dir = d.root + "/" + options.version;
     for (const char* table : kTables) {
-      std::ifstream in(d.version_dir + "/" + table + ".json",
-                       std::ios::binary);
+      std::ifstream in(d.version_dir + "/" + table + ".json", std::ios::binary);
       std::stringstream ss;
       ss << in.rdbuf();
       d.originals.push_back(ss.str());
@@ -62,8 +69,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
   Dataroot& base = Base();
   const int table = data[0] % kNumTables;
-  const std::string path =
-      base.version_dir + "/" + kTables[table] + ".json";
+  const std::string path = base.version_dir + "/" + kTables[table] + ".json";
   WriteTable(path, reinterpret_cast<const char*>(data + 1), size - 1);
   fuzz::ExpectReturnOrInputError([&] {
     NuscenesOptions options;

@@ -1,5 +1,6 @@
-// libFuzzer target: safetensors headers (diffusion/format/safetensors_header.h):
-// length prefix, JSON, dtypes, shapes, offsets tiling the data buffer.
+// libFuzzer target: safetensors headers
+// (diffusion/format/safetensors_header.h): length prefix, JSON, dtypes, shapes,
+// offsets tiling the data buffer.
 #include "diffusion/format/safetensors_header.h"
 #include "fuzz/fuzz_util.h"
 

@@ -29,7 +29,8 @@ inline std::string InputPath(const std::string& name) {
 
 // Writes `size` bytes to `path` (aborts if it cannot: a broken fuzzing set-up,
 // not a finding).
-inline void WriteInput(const std::string& path, const uint8_t* data,
+inline void WriteInput(const std::string& path,
+                       const uint8_t* data,
                        size_t size) {
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) std::abort();

@@ -13,8 +13,8 @@
 
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
-#include "geometry/util/status.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
@@ -100,8 +100,7 @@ cv::Mat ReadFloatMapOfShape(const std::string& path,
   if (header.shape.size() >= 2 &&
       (header.shape[0] != height || header.shape[1] != width)) {
     ThrowInputError(path, "shape ", header.shape[0], "x", header.shape[1],
-                    " (HxW) differs from ", reference, " ", height, "x",
-                    width);
+                    " (HxW) differs from ", reference, " ", height, "x", width);
   }
   return ReadFloatMap(path, channels);
 }

@@ -235,8 +235,10 @@ uint64_t RenderedFrameBytes(const RenderOptions& options) {
   return per_pixel * static_cast<uint64_t>(options.width) * options.height;
 }
 
-uint64_t EstimateRenderBytes(const RenderOptions& options, int64_t num_points,
-                             int frames_held, int threads) {
+uint64_t EstimateRenderBytes(const RenderOptions& options,
+                             int64_t num_points,
+                             int frames_held,
+                             int threads) {
   const uint64_t pixels = static_cast<uint64_t>(options.width) * options.height;
   // Scratch per thread: z-buffer keys (8) and point indices (4) per pixel;
   // soft mode keeps 7 floats of compositing state per pixel, and per point
@@ -245,7 +247,8 @@ uint64_t EstimateRenderBytes(const RenderOptions& options, int64_t num_points,
       options.mode == RenderMode::kSoft ? 7 * 4 + 4 : 8 + 4;
   const uint64_t scratch_per_point =
       options.mode == RenderMode::kSoft ? 3 * 4 + 3 * 4 + 2 * 4 : 16;
-  const uint64_t points = static_cast<uint64_t>(std::max<int64_t>(num_points, 0));
+  const uint64_t points =
+      static_cast<uint64_t>(std::max<int64_t>(num_points, 0));
   const uint64_t per_thread =
       scratch_per_pixel * pixels + scratch_per_point * points;
   // The packed cloud: positions (12), colour (3), instance (4), padding.

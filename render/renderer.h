@@ -192,8 +192,10 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
 // AvailableMemoryBytes() (geometry/util/memory.h) to refuse a job that cannot
 // fit instead of dying on std::bad_alloc, and to choose how many frames to
 // hold when streaming.
-uint64_t EstimateRenderBytes(const RenderOptions& options, int64_t num_points,
-                             int frames_held, int threads);
+uint64_t EstimateRenderBytes(const RenderOptions& options,
+                             int64_t num_points,
+                             int frames_held,
+                             int threads);
 // The output bytes of one rendered frame (part of EstimateRenderBytes).
 uint64_t RenderedFrameBytes(const RenderOptions& options);
 

@@ -25,7 +25,7 @@ if [[ ${#need[@]} -gt 0 ]]; then
   $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}"
 fi
 build=${BUILD_DIR:-build-asan}
-flags="-O1 -gline-tables-only -DNDEBUG"
+flags="-O2 -gline-tables-only -DNDEBUG"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
   -DCMAKE_C_FLAGS_RELWITHDEBINFO="$flags" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$flags" \

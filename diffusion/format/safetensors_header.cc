@@ -19,10 +19,9 @@ struct DtypeSize {
 };
 // Keep in step with the LibTorch table of diffusion/safetensors.cc (a test
 // checks that both list the same names).
-constexpr DtypeSize kDtypes[] = {{"F64", 8}, {"F32", 4}, {"F16", 2},
-                                 {"BF16", 2}, {"I64", 8}, {"I32", 4},
-                                 {"I16", 2}, {"I8", 1},  {"U8", 1},
-                                 {"BOOL", 1}};
+constexpr DtypeSize kDtypes[] = {
+    {"F64", 8}, {"F32", 4}, {"F16", 2}, {"BF16", 2}, {"I64", 8},
+    {"I32", 4}, {"I16", 2}, {"I8", 1},  {"U8", 1},   {"BOOL", 1}};
 
 std::string ShapeString(const std::vector<int64_t>& shape) {
   std::ostringstream os;
@@ -95,8 +94,8 @@ SafetensorsEntry ParseTensorEntry(const std::string& path,
                     "-byte data buffer");
   }
   uint64_t bytes = 0;
-  overflow |= __builtin_mul_overflow(numel, static_cast<uint64_t>(itemsize),
-                                     &bytes);
+  overflow |=
+      __builtin_mul_overflow(numel, static_cast<uint64_t>(itemsize), &bytes);
   if (overflow || bytes != e.end - e.begin) {
     ThrowInputError(path, "tensor '", name, "' of dtype ", e.dtype,
                     " and shape ", ShapeString(e.shape), " needs ",
@@ -148,7 +147,8 @@ int64_t SafetensorsDtypeSize(const std::string& dtype) {
 }
 
 SafetensorsHeader ParseSafetensorsHeader(const std::string& path,
-                                         const uint8_t* bytes, uint64_t size) {
+                                         const uint8_t* bytes,
+                                         uint64_t size) {
   SafetensorsHeader out;
   if (size < 8)
     ThrowInputError(path, "truncated safetensors file (", size, " bytes)");

@@ -47,7 +47,8 @@ struct SafetensorsHeader {
 // dtypes, shapes, offsets inside the buffer, non-overlapping and covering it.
 // Throws InputError naming `path`.
 SafetensorsHeader ParseSafetensorsHeader(const std::string& path,
-                                         const uint8_t* bytes, uint64_t size);
+                                         const uint8_t* bytes,
+                                         uint64_t size);
 
 }  // namespace diffusion
 }  // namespace geodrive

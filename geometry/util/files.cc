@@ -139,8 +139,8 @@ void CreateOutputDirectory(const std::string& dir) {
   }
   GEODRIVE_CHECK_INPUT(std::filesystem::is_directory(dir, ec), dir,
                        ": exists and is not a folder");
-  std::string probe = (std::filesystem::path(dir) / ".geodrive-probe-XXXXXX")
-                          .string();
+  std::string probe =
+      (std::filesystem::path(dir) / ".geodrive-probe-XXXXXX").string();
   const int fd = ::mkstemp(&probe[0]);
   if (fd < 0) {
     ThrowInputError(dir, "output folder is not writable (",

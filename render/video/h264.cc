@@ -78,7 +78,9 @@ struct H264Mp4Writer::Impl {
   cv::Mat padded, yuv;
 };
 
-H264Mp4Writer::H264Mp4Writer(const std::string& path, int width, int height,
+H264Mp4Writer::H264Mp4Writer(const std::string& path,
+                             int width,
+                             int height,
                              const H264Options& options)
     : impl_(std::make_unique<Impl>()) {
   options.Check();
@@ -226,16 +228,9 @@ void H264Mp4Writer::Finish() {
 void WriteH264Mp4(const std::string& path,
                   const std::vector<cv::Mat>& frames,
                   const H264Options& options) {
-  options.Check();
   GEODRIVE_CHECK_INPUT(!frames.empty(), path, ": no frames to write");
-  const int w = frames[0].cols, h = frames[0].rows;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    GEODRIVE_CHECK_INPUT(frames[i].type() == CV_8UC3 && frames[i].cols == w &&
-                             frames[i].rows == h,
-                         path, ": frame ", i, " is not an RGB ", w, "x", h,
-                         " image");
-  }
-  H264Mp4Writer writer(path, w, h, options);
+  // Write() checks each frame; a failure removes the temporary file.
+  H264Mp4Writer writer(path, frames[0].cols, frames[0].rows, options);
   for (const cv::Mat& frame : frames) writer.Write(frame);
   writer.Finish();
 }

@@ -44,7 +44,9 @@ void WriteH264Mp4(const std::string& path,
 class H264Mp4Writer {
  public:
   // `width` x `height` is the frame size (odd sizes are padded as above).
-  H264Mp4Writer(const std::string& path, int width, int height,
+  H264Mp4Writer(const std::string& path,
+                int width,
+                int height,
                 const H264Options& options = {});
   ~H264Mp4Writer();
   H264Mp4Writer(const H264Mp4Writer&) = delete;

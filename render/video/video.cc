@@ -56,7 +56,8 @@ struct VideoStreamWriter::Impl {
   bool closed = false;
 };
 
-VideoStreamWriter::VideoStreamWriter(const std::string& path, int width,
+VideoStreamWriter::VideoStreamWriter(const std::string& path,
+                                     int width,
                                      int height,
                                      const VideoWriteOptions& options)
     : impl_(std::make_unique<Impl>()) {
@@ -129,9 +130,9 @@ VideoWriteResult VideoStreamWriter::Close() {
     return m.result;
   }
   m.opencv.release();
-  GEODRIVE_CHECK_INPUT(std::filesystem::exists(m.path) &&
-                           std::filesystem::file_size(m.path) > 0,
-                       m.path, ": the video writer produced no file");
+  GEODRIVE_CHECK_INPUT(
+      std::filesystem::exists(m.path) && std::filesystem::file_size(m.path) > 0,
+      m.path, ": the video writer produced no file");
   return m.result;
 }
 

@@ -38,7 +38,9 @@ class VideoStreamWriter {
  public:
   // Opens `path` for frames of `width` x `height`; throws InputError naming
   // the file when no codec can be opened.
-  VideoStreamWriter(const std::string& path, int width, int height,
+  VideoStreamWriter(const std::string& path,
+                    int width,
+                    int height,
                     const VideoWriteOptions& options = {});
   ~VideoStreamWriter();
   VideoStreamWriter(const VideoStreamWriter&) = delete;

@@ -1,4 +1,5 @@
-// End-to-end tests of the `geodrive` binary's command-line contract (help, version, exit codes).
+// End-to-end tests of the `geodrive` binary's command-line contract (help,
+// version, exit codes).
 
 #include <gtest/gtest.h>
 
@@ -62,7 +63,8 @@ TEST(Cli, UnusableOutputFolderIsBadInputFoundFirst) {
   const std::string file = test::MakeTempDir("cli_out") + "/a_file";
   std::ofstream(file) << "x";
   for (const std::string& args :
-       {"render --cloud /nonexistent.ply --trajectory /nonexistent.json --out " +
+       {"render --cloud /nonexistent.ply --trajectory /nonexistent.json "
+        "--out " +
             file + "/sub",
         "eval --pred /nonexistent --gt /nonexistent --out " + file +
             "/sub/report.json",

@@ -52,7 +52,8 @@ int Lines(const std::string& text) {
 }
 
 // Exit 2, exactly one line, naming `path` and containing `what`.
-void ExpectOneLineError(const CliRun& r, const std::string& path,
+void ExpectOneLineError(const CliRun& r,
+                        const std::string& path,
                         const std::string& what) {
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(Lines(r.output), 1) << r.output;
@@ -106,8 +107,8 @@ TEST(HostileSizes, PcdDeclaring50MillionPoints) {
 TEST(HostileSizes, NpyInfoReadsTheHeaderOnly) {
   const std::string dir = test::MakeTempDir("hostile_npy");
   auto write_header = [](const std::string& path, const std::string& shape) {
-    std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" +
-                         shape + "), }";
+    std::string header =
+        "{'descr': '<f4', 'fortran_order': False, 'shape': (" + shape + "), }";
     header.resize(117, ' ');
     header += "\n";
     std::string pre = "\x93NUMPY";
@@ -174,8 +175,7 @@ RenderInputs WriteRenderInputs(const std::string& dir) {
   WriteText(dir + "/K.txt", "60 0 31.5 0 60 23.5 0 0 1\n");
   Trajectory t;
   t.Add(0.0, Rigid3d());
-  t.Add(1.0, Rigid3d(Eigen::Quaterniond::Identity(),
-                     Eigen::Vector3d(0, 0, 1)));
+  t.Add(1.0, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 1)));
   WriteTrajectoryJson(dir + "/traj.json", t);
   RenderInputs in;
   in.args = "render --image " + dir + "/img.png --depth " + dir +
@@ -196,8 +196,8 @@ TEST(HostileSizes, RenderOfAHugeFrameIsRefusedUpFront) {
 TEST(HostileSizes, RenderOf3000FramesStreams) {
   const std::string dir = test::MakeTempDir("hostile_render_frames");
   const RenderInputs in = WriteRenderInputs(dir);
-  const CliRun r = Geodrive(in.args + " --num-frames 3000 --no-video --out " +
-                         dir + "/out");
+  const CliRun r =
+      Geodrive(in.args + " --num-frames 3000 --no-video --out " + dir + "/out");
   ASSERT_EQ(r.code, 0) << r.output;
   std::ifstream rj(dir + "/out/render.json");
   std::string json((std::istreambuf_iterator<char>(rj)), {});
