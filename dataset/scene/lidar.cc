@@ -7,6 +7,7 @@
 // frame sees are dropped. Metric by construction (LiDAR and ego poses).
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <limits>
 
@@ -27,22 +28,39 @@ PointCloud AggregateSweeps(const DriveClip& clip,
       t0 - static_cast<int64_t>(options.lidar_window_before_s * 1e6);
   const int64_t hi =
       t0 + static_cast<int64_t>(options.lidar_window_after_s * 1e6);
-  const Rigid3d cam0_from_world = clip.frames.front().world_from_cam.Inverse();
+  // [R | t]: one matrix product per point instead of a quaternion rotation
+  // (these loops run over every point of every sweep, and every frame).
+  const Matrix3x4d cam0_from_world =
+      clip.frames.front().world_from_cam.Inverse().ToMatrix3x4();
+  constexpr double kBoxMargin = 0.3;
   PointCloud cloud;
   for (size_t s : lidar.SweepsBetween(lo, hi)) {
     const LidarSweepInfo& info = lidar.Sweeps()[s];
     const PointCloud sweep = lidar.Load(s);
-    const Rigid3d world_from_lidar = info.WorldFromSensor();
+    const Matrix3x4d world_from_lidar = info.WorldFromSensor().ToMatrix3x4();
     const std::vector<ClipBox> boxes = lidar.Boxes(s);
+    // Each box's bounding sphere (grown by the margin): the exact test runs
+    // only for points inside it.
+    std::vector<double> radius2(boxes.size());
+    for (size_t b = 0; b < boxes.size(); ++b) {
+      const double r =
+          boxes[b].box.HalfExtents().norm() + kBoxMargin * std::sqrt(3.0);
+      radius2[b] = r * r;
+    }
     for (size_t i = 0; i < sweep.size(); ++i) {
       const Eigen::Vector3d p = sweep.positions[i].cast<double>();
       if (p.head<2>().norm() < 2.5) continue;  // ego vehicle returns
-      const Eigen::Vector3d g = world_from_lidar * p;
-      const bool in_box =
-          std::any_of(boxes.begin(), boxes.end(),
-                      [&](const ClipBox& b) { return b.box.Contains(g, 0.3); });
+      const Eigen::Vector3d g =
+          world_from_lidar.leftCols<3>() * p + world_from_lidar.col(3);
+      bool in_box = false;
+      for (size_t b = 0; b < boxes.size() && !in_box; ++b) {
+        in_box = (g - boxes[b].box.center).squaredNorm() <= radius2[b] &&
+                 boxes[b].box.Contains(g, kBoxMargin);
+      }
       if (in_box) continue;
-      cloud.positions.push_back((cam0_from_world * g).cast<float>());
+      cloud.positions.push_back(
+          (cam0_from_world.leftCols<3>() * g + cam0_from_world.col(3))
+              .cast<float>());
       point_time->push_back(info.timestamp_us);
     }
   }
@@ -63,15 +81,17 @@ PointCloud ColourFromFrames(const DriveClip& clip,
   for (size_t f = 0; f < clip.frames.size(); ++f) {
     const DriveFrame& frame = clip.frames[f];
     const PinholeCamera& cam = frame.camera;
-    const Rigid3d cam_from_cam0 =
-        frame.world_from_cam.Inverse() * world_from_cam0;
+    const Matrix3x4d cam_from_cam0 =
+        (frame.world_from_cam.Inverse() * world_from_cam0).ToMatrix3x4();
+    const Eigen::Matrix3d rotation = cam_from_cam0.leftCols<3>();
+    const Eigen::Vector3d translation = cam_from_cam0.col(3);
     const int cw = (cam.width + 3) / 4, ch = (cam.height + 3) / 4;
     std::vector<float> zmin(static_cast<size_t>(cw) * ch,
                             std::numeric_limits<float>::infinity());
     std::vector<Eigen::Vector3f> proj(n);
     for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d pc =
-          cam_from_cam0 * cloud.positions[i].cast<double>();
+          rotation * cloud.positions[i].cast<double>() + translation;
       proj[i] = Eigen::Vector3f(-1, -1, -1);
       if (pc.z() < 1.0) continue;
       const Eigen::Vector2d uv = cam.Project(pc);

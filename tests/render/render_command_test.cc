@@ -81,11 +81,10 @@ TEST(RenderCommand, ImageDepthToVideoFramesAndReport) {
 TEST(RenderCommand, StreamedChunksGiveTheSameBytesForAnyChunking) {
   const std::string dir = test::MakeTempDir("render_cmd_chunks");
   const Inputs in = WriteInputs(dir);
-  const std::string base = test::GeodriveBinary() + " render --image " +
-                           in.image + " --depth " + in.depth +
-                           " --intrinsics " + in.intrinsics +
-                           " --trajectory " + in.trajectory +
-                           " --size 160x256 --num-frames 40 --frames";
+  const std::string base =
+      test::GeodriveBinary() + " render --image " + in.image + " --depth " +
+      in.depth + " --intrinsics " + in.intrinsics + " --trajectory " +
+      in.trajectory + " --size 160x256 --num-frames 40 --frames";
   std::string log;
   ASSERT_EQ(test::RunCommand(base + " --threads 1 --out " + dir + "/a", &log),
             0)
@@ -113,6 +112,31 @@ TEST(RenderCommand, StreamedChunksGiveTheSameBytesForAnyChunking) {
   for (const auto& f : report["frames"]) sum += f["coverage"].get<double>();
   EXPECT_NEAR(report["summary"]["mean_coverage"].get<double>(), sum / 40,
               1e-12);
+}
+
+// Issue 19: a render.json that could not be written was ignored: the stream
+// opened, its writes failed and the run exited 0 with a truncated report.
+// Here a file-size limit (ulimit -f 150 KiB, SIGXFSZ ignored, so writes fail
+// with EFBIG as on a full disk) lets the contact sheet through but not the
+// report of 2000 frames (about 300 KB): the run must say so and exit 2.
+TEST(RenderCommand, ReportWriteFailureIsAnError) {
+  const std::string dir = test::MakeTempDir("render_cmd_report_fail");
+  const Inputs in = WriteInputs(dir);
+  std::string log;
+  const int rc = test::RunCommand(
+      "bash -c \"trap '' XFSZ; ulimit -f 150; exec " +
+          test::GeodriveBinary() + " render --image " + in.image +
+          " --depth " + in.depth + " --intrinsics " + in.intrinsics +
+          " --trajectory " + in.trajectory +
+          " --size 16x16 --num-frames 2000 --no-video --out " + dir +
+          "/out\"",
+      &log);
+  EXPECT_EQ(rc, 2) << log;
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+  EXPECT_NE(log.find(dir + "/out/render.json: write failed"),
+            std::string::npos)
+      << log;
+  EXPECT_FALSE(fs::exists(dir + "/out/render.json"));  // no partial report
 }
 
 TEST(RenderCommand, ShiftAndCompatPreset) {
