@@ -23,7 +23,7 @@ using internal::JsonVector;
 Trajectory ReadTrajectoryJson(const std::string& path,
                               TrajectoryFileInfo* info) {
   const json root = internal::ReadJsonObjectFile(path, "trajectory file");
-  if (root.value("format", "") != "geodrive-trajectory") {
+  if (internal::JsonString(path, root, "format", "") != "geodrive-trajectory") {
     ThrowInputError(path, "\"format\" must be \"geodrive-trajectory\"");
   }
   if (!root.contains("version") || !root["version"].is_number_integer() ||

@@ -186,7 +186,7 @@ BoxSequences ReadBoxesJson(const std::string& path) {
   CheckKeys(path, root, "top level",
             {"format", "version", "image_width", "image_height", "num_frames",
              "units", "instances", "description"});
-  if (root.value("format", "") != "geodrive-boxes")
+  if (internal::JsonString(path, root, "format", "") != "geodrive-boxes")
     ThrowInputError(path, "\"format\" must be \"geodrive-boxes\"");
   if (!root.contains("version") || !root["version"].is_number_integer() ||
       root["version"] != 1)

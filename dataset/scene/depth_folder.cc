@@ -87,7 +87,7 @@ class DepthFolderSceneSource : public SceneSource {
       ThrowInputError(json_path, "has ", frames.size(),
                       " frames but the clip has ", in.clip->num_frames());
     ConditionScene scene;
-    scene.units = root.value("units", std::string("unknown"));
+    scene.units = internal::JsonString(json_path, root, "units", "unknown");
     std::vector<Rigid3d> world_from_cam;
     for (size_t i = 0; i < frames.size(); ++i) {
       const std::string where = "frames[" + std::to_string(i) + "]";

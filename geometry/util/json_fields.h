@@ -42,6 +42,19 @@ inline double JsonNumber(const std::string& path,
   return v;
 }
 
+// The string at `key` of `object`, `fallback` when the key is absent; any
+// other type is an InputError (nlohmann's value() would throw its own
+// type_error, which is not ours: found by fuzz_trajectory_json).
+inline std::string JsonString(const std::string& path,
+                              const nlohmann::json& object,
+                              const std::string& key,
+                              const std::string& fallback) {
+  if (!object.contains(key)) return fallback;
+  const nlohmann::json& v = object[key];
+  if (!v.is_string()) ThrowInputError(path, "\"", key, "\" must be a string");
+  return v.get<std::string>();
+}
+
 // An array of exactly N finite numbers.
 template <int N>
 Eigen::Matrix<double, N, 1> JsonVector(const std::string& path,

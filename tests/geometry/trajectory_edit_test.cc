@@ -296,6 +296,10 @@ TEST(TrajectoryJson, BadFilesGiveOneLineErrorsNamingTheFile) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"malformed.json", "{\"format\": "},
       {"format.json", R"({"format": "other", "version": 1, "frames": []})"},
+      // Found by fuzz_trajectory_json: a non-string "format" escaped as
+      // nlohmann's type_error (exit 1, "internal error").
+      {"format_object.json",
+       R"({"format": {}, "version": 1, "frames": []})"},
       {"empty.json", head + "]}"},
       {"nonunit.json",
        head + R"({"position": [0,0,0], "quaternion_wxyz": [1, 0.3, 0, 0]}]})"},

@@ -108,6 +108,19 @@ TEST(Boxes, WrittenFileValidatesAgainstSchema) {
   EXPECT_NE(test::RunCommand(py + dir + "/bad.json", &out), 0) << out;
 }
 
+// Found by fuzzing the trajectory reader, which shares the pattern: a
+// non-string "format" must be an InputError, not nlohmann's type_error.
+TEST(Boxes, NonStringFormatIsAnInputError) {
+  const std::string path = test::MakeTempDir("boxes_format") + "/b.json";
+  std::ofstream(path) << R"({"format": ["geodrive-boxes"], "version": 1})";
+  try {
+    ReadBoxesJson(path);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": \"format\" must be a string");
+  }
+}
+
 TEST(Boxes, MalformedFilesGiveOneClearError) {
   const std::string dir = test::MakeTempDir("boxes_bad");
   const std::string head =
