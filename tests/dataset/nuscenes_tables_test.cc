@@ -337,6 +337,15 @@ TEST_F(NuscenesBadInput, NanQuaternion) {
                                      HasSubstr("rotation")));
 }
 
+// Found by fuzz_nuscenes_tables (UBSan): an integral double beyond int64
+// (1.7e93) was cast to int64_t, which is undefined.
+TEST_F(NuscenesBadInput, TimestampBeyondInt64IsAnError) {
+  fx_.tables["ego_pose"][4]["timestamp"] = 1.7e93;
+  EXPECT_THAT(Load("hugets"),
+              AllOf(HasSubstr("ego_pose.json"), HasSubstr(Tok("ego_pose", 4)),
+                    HasSubstr("not an integer in the int64 range")));
+}
+
 TEST_F(NuscenesBadInput, IntrinsicNot3x3) {
   fx_.tables["calibrated_sensor"][0]["camera_intrinsic"] = {{126.0, 0.0, 80.0},
                                                             {0.0, 126.0, 45.0}};
