@@ -320,7 +320,20 @@ void AddToSummary(const RenderedFrame& frame,
   if (frame.num_valid == 0) summary->empty_frames.push_back(index);
 }
 
-int RunRender(RenderArgs a) {
+// Which frames the contact sheet draws: every frame, or
+// kMaxContactSheetFrames evenly spaced.
+std::vector<char> ContactSheetSelection(int num_frames) {
+  std::vector<char> on_sheet(num_frames, num_frames <= kMaxContactSheetFrames);
+  for (int k = 0;
+       num_frames > kMaxContactSheetFrames && k < kMaxContactSheetFrames; ++k) {
+    on_sheet[static_cast<int64_t>(k) * (num_frames - 1) /
+             (kMaxContactSheetFrames - 1)] = 1;
+  }
+  return on_sheet;
+}
+
+// Checks the command line's combination of inputs (RunRender's first step).
+void CheckRenderArgs(const RenderArgs& a) {
   const int sources = !a.cloud.empty() + !a.image.empty() + !a.monst3r.empty();
   GEODRIVE_CHECK_INPUT(
       sources == 1,
@@ -339,6 +352,10 @@ int RunRender(RenderArgs a) {
                            (a.dynamic.remove.empty() &&
                             a.dynamic.insert.empty() && a.dynamic.move.empty()),
                        "--remove/--insert/--move need --boxes FILE");
+}
+
+int RunRender(RenderArgs a) {
+  CheckRenderArgs(a);
   const RenderPreset preset = ParseRenderPreset(a.preset);
   const RenderOptions base_options = RenderOptionsFromArgs(a, preset);
   a.edits.forward_then_back = a.reverse;
@@ -379,13 +396,7 @@ int RunRender(RenderArgs a) {
       preset == RenderPreset::kGeodriveCompat ? real_frame0 : cv::Mat();
   const int factor = PresetUpsampleFactor(preset);
   const cv::Size output_size(options.width * factor, options.height * factor);
-  // Contact-sheet frames: every frame, or kMaxContactSheetFrames evenly spaced.
-  std::vector<char> on_sheet(num_frames, num_frames <= kMaxContactSheetFrames);
-  for (int k = 0;
-       num_frames > kMaxContactSheetFrames && k < kMaxContactSheetFrames; ++k) {
-    on_sheet[static_cast<int64_t>(k) * (num_frames - 1) /
-             (kMaxContactSheetFrames - 1)] = 1;
-  }
+  const std::vector<char> on_sheet = ContactSheetSelection(num_frames);
 
   json report, dynamic_edit;
   std::unique_ptr<VideoStreamWriter> video;
