@@ -5,7 +5,15 @@
 # Usage: bash scripts/run_fuzz.sh BUILD_DIR [SECONDS_PER_TARGET=30] [TARGET...]
 #   BUILD_DIR  a build configured with -DGEODRIVE_FUZZ=ON (scripts/run_sanitizers.sh makes one)
 #   TARGET     names without the fuzz_ prefix (default: every fuzz_* binary in BUILD_DIR/fuzz)
-# Environment: FUZZ_WORK (default /tmp/geodrive_fuzz): corpora, logs and any crash inputs.
+# Environment:
+#   FUZZ_WORK      (default /tmp/geodrive_fuzz): corpora, logs and any crash inputs
+#   FUZZ_CLOCK     wall (default): SECONDS of wall time per target (libFuzzer's -max_total_time);
+#                  cpu: SECONDS of CPU time of the fuzzer process, measured from /proc and
+#                  ended with SIGINT (libFuzzer then prints its final stats) -- for long runs
+#                  that share the machine with other work (issue 19: "1 CPU-hour")
+#   FUZZ_MAX_RUNS  stop earlier after this many executions (libFuzzer's -runs; 10000000 for the
+#                  long runs of docs/RELIABILITY.md)
+#   FUZZ_TIMEOUT   seconds one input may take before it is a hang finding (default 10)
 # Prints one line per target (executions, corpus size, coverage) and exits 1 when any target
 # found a crash, a leak, a sanitizer report, a timeout or an out-of-memory (the reproducer is
 # kept in FUZZ_WORK/<target>/findings/, and `BUILD_DIR/fuzz/fuzz_<target> FILE` replays it).
@@ -22,6 +30,11 @@ fi
 [[ ${#targets[@]} -gt 0 ]] || { echo "run_fuzz: no fuzz targets in $build/fuzz (configure with -DGEODRIVE_FUZZ=ON)" >&2; exit 2; }
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+clock=${FUZZ_CLOCK:-wall}
+[[ $clock == wall || $clock == cpu ]] || { echo "run_fuzz: FUZZ_CLOCK must be wall or cpu, not '$clock'" >&2; exit 2; }
+limits=(-timeout="${FUZZ_TIMEOUT:-10}" -runs="${FUZZ_MAX_RUNS:--1}")
+[[ $clock == wall ]] && limits+=(-max_total_time="$seconds")
+ticks_per_second=$(getconf CLK_TCK)
 status=0
 for t in "${targets[@]}"; do
   bin="$build/fuzz/fuzz_$t"
@@ -32,9 +45,26 @@ for t in "${targets[@]}"; do
   log="$dir/fuzz.log"
   # -malloc_limit_mb: a reader that allocates more than this for an input of at most
   # max_len bytes has trusted a declared size (issue 19): a finding.
-  if "$bin" "$dir/corpus" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2560 \
-       -malloc_limit_mb=1024 -max_len=65536 -print_final_stats=1 \
-       -artifact_prefix="$dir/findings/" >"$log" 2>&1; then
+  "$bin" "$dir/corpus" "${limits[@]}" -rss_limit_mb=2560 \
+    -malloc_limit_mb=1024 -max_len=65536 -print_final_stats=1 \
+    -artifact_prefix="$dir/findings/" >"$log" 2>&1 &
+  pid=$!
+  # Watch the fuzzer's CPU time (utime + stime, fields 14 and 15 of /proc/PID/stat).
+  cpu_ticks=0
+  interrupted=0
+  while kill -0 "$pid" 2>/dev/null; do
+    ticks=$(awk '{print $14 + $15}' "/proc/$pid/stat" 2>/dev/null || echo "$cpu_ticks")
+    cpu_ticks=$ticks
+    if [[ $clock == cpu && $interrupted == 0 ]] && (( cpu_ticks >= seconds * ticks_per_second )); then
+      kill -INT "$pid" 2>/dev/null || true
+      interrupted=1
+    fi
+    sleep 2
+  done
+  rc=0
+  wait "$pid" || rc=$?
+  # 72: libFuzzer's exit code after the SIGINT sent above at the CPU limit.
+  if [[ $rc == 0 || ( $interrupted == 1 && $rc == 72 ) ]]; then
     result=ok
   else
     result=FINDING
@@ -42,7 +72,7 @@ for t in "${targets[@]}"; do
   fi
   runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || echo "?")
-  echo "fuzz_$t: $result, $runs executions in ${seconds}s, coverage $cov, corpus $(ls "$dir/corpus" | wc -l) inputs"
+  echo "fuzz_$t: $result, $runs executions in $((cpu_ticks / ticks_per_second)) CPU-s (limit ${seconds}s $clock), coverage $cov, corpus $(ls "$dir/corpus" | wc -l) inputs"
   if [[ $result != ok ]]; then
     grep -m 5 -E 'ERROR|SUMMARY|==[0-9]+==|deadly|uncaught|Test unit written' "$log" | sed 's/^/  /' || true
   fi
