@@ -1,7 +1,18 @@
 // The `geodrive` command-line tool: one binary, one subcommand per task
 // (apps/*_command.cc, registered in the shared registry of apps/cli/cli.h).
+//
+// Start-up (issue 23): the executable holds only the light commands (`info`)
+// and links only light libraries. Every other command lives in the plugin
+// libgeodrive-commands.so (apps/commands_plugin.cc), loaded when one of them
+// runs (or for --help, which lists them all): `geodrive --version` and
+// `geodrive info FILE` never load FFmpeg, PCL, Ceres or OpenCV's codecs.
 
 #include <glog/logging.h>
+
+#include <exception>
+#include <iostream>
+#include <string>
+#include <vector>
 
 #include "apps/cli/cli.h"
 #include "geodrive_version.h"
@@ -13,6 +24,15 @@ int main(int argc, char** argv) {
   google::InitGoogleLogging(argv[0]);
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = 1;  // warnings and errors only
+  const std::vector<std::string> builtin_commands = {"info"};
+  if (CommandLineNeedsPlugin(argc, argv, builtin_commands)) {
+    try {
+      AddCommandsFromPlugin("libgeodrive-commands.so", GEODRIVE_VERSION);
+    } catch (const std::exception& e) {
+      std::cerr << "geodrive: error: " << e.what() << std::endl;
+      return kExitInternal;
+    }
+  }
   CliProgram program;
   program.name = "geodrive";
   program.description =

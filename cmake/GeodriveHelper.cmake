@@ -62,3 +62,31 @@ function(geodrive_add_test)
     DISCOVERY_MODE PRE_TEST
     DISCOVERY_TIMEOUT 60)
 endfunction()
+
+# geodrive_add_plugin(NAME <target> FILE_NAME <stem> SRCS ... [LINK_LIBS ...])
+#
+# A shared-library plugin (geometry/util/plugin.h), loaded with dlopen on first use: built as
+# <build>/lib/geodrive/lib<stem>.so and installed in <libdir>/geodrive. Only symbols marked
+# visibility("default") (the plugin's entry point) are exported: the static libraries linked in
+# stay private to the plugin (--exclude-libs) and bind to themselves (-Bsymbolic), so a plugin and
+# the executable that loads it can both hold the toolkit's libraries without mixing them.
+function(geodrive_add_plugin)
+  cmake_parse_arguments(ARG "" "NAME;FILE_NAME" "SRCS;LINK_LIBS" ${ARGN})
+  add_library(${ARG_NAME} MODULE ${ARG_SRCS})
+  set_target_properties(${ARG_NAME} PROPERTIES
+    OUTPUT_NAME ${ARG_FILE_NAME}
+    LIBRARY_OUTPUT_DIRECTORY ${GEODRIVE_PLUGIN_BUILD_DIR}
+    CXX_VISIBILITY_PRESET hidden
+    VISIBILITY_INLINES_HIDDEN ON)
+  target_compile_options(${ARG_NAME} PRIVATE ${GEODRIVE_WARNINGS})
+  target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR}
+    ${PROJECT_BINARY_DIR}/generated)
+  target_link_options(${ARG_NAME} PRIVATE -Wl,--exclude-libs,ALL -Wl,-Bsymbolic)
+  if(NOT GEODRIVE_SANITIZE AND NOT GEODRIVE_FUZZ)
+    # A symbol left undefined would only fail at dlopen, in front of a user: fail the link instead
+    # (sanitizer builds leave the sanitizer runtime to the executable, so they cannot).
+    target_link_options(${ARG_NAME} PRIVATE -Wl,--no-undefined)
+  endif()
+  target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LINK_LIBS})
+  install(TARGETS ${ARG_NAME} LIBRARY DESTINATION ${GEODRIVE_PLUGIN_INSTALL_DIR})
+endfunction()

@@ -2,10 +2,12 @@
 // LPIPS, FID and FVD need learned networks (pytorch-fid Inception, I3D, LPIPS
 // AlexNet) that the user provides as TorchScript models, run through LibTorch
 // (docs/EVAL.md says what each model must be and how it is preprocessed):
-//  - eval/deep_metrics_torch.cc (#ifdef GEODRIVE_WITH_TORCH): torch::jit::load
-//    and the documented preprocessing, done with LibTorch's own kernels;
-//  - eval/deep_metrics_stub.cc (#ifndef GEODRIVE_WITH_TORCH): every entry point
-//    reports that the build has no LibTorch.
+//  - eval/deep_metrics_torch.cc: torch::jit::load and the documented
+//    preprocessing, done with LibTorch's own kernels, built (with
+//    GEODRIVE_WITH_TORCH=ON) as the plugin libgeodrive-deep-metrics.so;
+//  - eval/deep_metrics.cc: these entry points, which load that plugin on first
+//    use (geometry/util/plugin.h), so that no binary links LibTorch; without
+//    the plugin they report that the build has no LibTorch.
 // The Fréchet distance itself (eval/frechet.h) needs no LibTorch.
 
 #include <Eigen/Core>

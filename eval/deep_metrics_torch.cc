@@ -2,7 +2,10 @@
 // Inception, I3D, LPIPS) and the preprocessing of docs/EVAL.md, done with
 // LibTorch's own kernels (at::upsample_bilinear2d is what PyTorch's
 // F.interpolate(mode='bilinear', align_corners=False) runs).
-#ifdef GEODRIVE_WITH_TORCH
+//
+// Compiled only into the plugin libgeodrive-deep-metrics.so (eval/CMakeLists.txt),
+// loaded by eval/deep_metrics.cc when a deep metric is asked for: no other
+// binary links LibTorch (issue 23: it costs 0.6 s of start-up per process).
 
 #include <torch/script.h>
 
@@ -12,6 +15,8 @@
 #include <sstream>
 
 #include "eval/deep_metrics.h"
+#include "eval/deep_metrics_plugin.h"
+#include "geodrive_version.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -249,25 +254,23 @@ class TorchLpipsModel : public LpipsModel {
 
 }  // namespace
 
-bool DeepMetricsAvailable() { return true; }
-
-std::string DeepMetricsUnavailableMessage() { return ""; }
-
-std::unique_ptr<FeatureExtractor> LoadFeatureExtractor(
-    const std::string& model_path, FeatureNetwork network) {
+// The plugin's loaders (eval/deep_metrics.h says what they check).
+FeatureExtractor* TorchLoadFeatureExtractor(const std::string& model_path,
+                                            FeatureNetwork network) {
   GEODRIVE_CHECK_INPUT(!model_path.empty(),
                        network == FeatureNetwork::kInceptionFid
                            ? "fid needs an Inception TorchScript model path"
                            : "fvd needs an I3D TorchScript model path");
-  return std::make_unique<TorchFeatureExtractor>(model_path, network);
+  return new TorchFeatureExtractor(model_path, network);
 }
 
-std::unique_ptr<LpipsModel> LoadLpipsModel(const std::string& model_path) {
+LpipsModel* TorchLoadLpipsModel(const std::string& model_path) {
   GEODRIVE_CHECK_INPUT(!model_path.empty(),
                        "lpips needs an LPIPS TorchScript model path");
-  return std::make_unique<TorchLpipsModel>(model_path);
+  return new TorchLpipsModel(model_path);
 }
 
 }  // namespace geodrive
 
-#endif  // GEODRIVE_WITH_TORCH
+GEODRIVE_DEEP_METRICS_PLUGIN_ENTRY(::geodrive::TorchLoadFeatureExtractor,
+                                   ::geodrive::TorchLoadLpipsModel)

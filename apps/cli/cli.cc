@@ -5,8 +5,10 @@
 #include <iostream>
 #include <map>
 #include <new>
+#include <stdexcept>
 
 #include "geometry/util/files.h"
+#include "geometry/util/plugin.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -132,6 +134,39 @@ CLI::Validator ThreadCountValidator() {
         return "";
       },
       "0.." + std::to_string(kMaxThreads));
+}
+
+bool CommandLineNeedsPlugin(int argc,
+                            char** argv,
+                            const std::vector<std::string>& builtin_commands) {
+  bool asks_version = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--version") asks_version = true;
+    if (arg.empty() || arg[0] == '-') continue;
+    // The first positional argument is the command (neither binary has a
+    // top-level option that takes a value).
+    return std::find(builtin_commands.begin(), builtin_commands.end(), arg) ==
+           builtin_commands.end();
+  }
+  return !asks_version;
+}
+
+void AddCommandsFromPlugin(const std::string& file_name,
+                           const std::string& version) {
+  const auto entry = reinterpret_cast<CommandPluginEntry>(
+      LoadPluginSymbol(file_name, kCommandPluginEntry));
+  const CommandPluginInfo info = entry();
+  if (info.version == nullptr || version != info.version ||
+      info.commands == nullptr) {
+    throw std::runtime_error(
+        file_name + " is version " + (info.version ? info.version : "?") +
+        ", this program " + version +
+        ": reinstall, or point GEODRIVE_PLUGIN_DIR at the matching build");
+  }
+  auto& registry = CommandRegistry();
+  registry.insert(registry.end(), info.commands->begin(),
+                  info.commands->end());
 }
 
 }  // namespace geodrive

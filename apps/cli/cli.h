@@ -92,7 +92,45 @@ constexpr int kMaxThreads = 256;
 // 0..kMaxThreads, 0 meaning "all cores".
 CLI::Validator ThreadCountValidator();
 
+// ---- Commands in a plugin (geometry/util/plugin.h) ----
+// A binary may keep its light commands in the executable and its heavy ones
+// (those that load FFmpeg, PCL, Ceres...) in a plugin loaded only when one of
+// them runs: `geodrive --version` and `geodrive info` then start in a few
+// milliseconds. The plugin defines GEODRIVE_COMMAND_PLUGIN_ENTRY() once and
+// registers its commands with GEODRIVE_REGISTER_COMMAND as usual.
+
+// What a command plugin hands to the executable.
+struct CommandPluginInfo {
+  // The plugin's GEODRIVE_VERSION; must equal the executable's.
+  const char* version = nullptr;
+  // The plugin's registry (its own copy of CommandRegistry()).
+  const std::vector<CommandSpec>* commands = nullptr;
+};
+
+// The exported entry point's name and type.
+constexpr char kCommandPluginEntry[] = "GeodriveCommandPlugin";
+using CommandPluginEntry = CommandPluginInfo (*)();
+
+// False when the command line can run without the plugin: its command is one
+// of `builtin_commands`, or it names no command and asks for --version.
+bool CommandLineNeedsPlugin(int argc,
+                            char** argv,
+                            const std::vector<std::string>& builtin_commands);
+
+// Loads plugin `file_name` and appends its commands to CommandRegistry().
+// Throws std::runtime_error when it is missing, cannot be loaded, or was
+// built for another version than `version`.
+void AddCommandsFromPlugin(const std::string& file_name,
+                           const std::string& version);
+
 }  // namespace geodrive
+
+// Defines the plugin's entry point (in exactly one file of the plugin).
+#define GEODRIVE_COMMAND_PLUGIN_ENTRY(version_string)                    \
+  extern "C" __attribute__((visibility("default")))                     \
+  ::geodrive::CommandPluginInfo GeodriveCommandPlugin() {               \
+    return {version_string, &::geodrive::CommandRegistry()};            \
+  }
 
 #define GEODRIVE_REGISTER_COMMAND(id, name, description, setup)        \
   static ::geodrive::CommandRegistrar geodrive_command_registrar_##id( \
