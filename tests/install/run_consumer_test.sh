@@ -9,3 +9,13 @@ cmake -S "$source_dir/tests/install/consumer" -B "$work/build" -DCMAKE_BUILD_TYP
   -DCMAKE_PREFIX_PATH="$work/prefix" > "$work/configure.log"
 cmake --build "$work/build" -j 2 > "$work/build.log"
 "$work/build/consumer"
+
+# The installed `geodrive` finds its installed commands plugin (<prefix>/<libdir>/geodrive), not
+# the build tree's (issue 23: commands are a plugin loaded on use).
+installed="$work/prefix/bin/geodrive"
+"$installed" --version
+loaded=$(LD_DEBUG=files "$installed" synth --help 2>&1 >/dev/null | grep -o '[^ =]*libgeodrive-commands.so' | sort -u)
+case "$loaded" in
+  "$work/prefix/"*) echo "installed geodrive loads $loaded" ;;
+  *) echo "installed geodrive loaded '$loaded', not the plugin under $work/prefix" >&2; exit 1 ;;
+esac
