@@ -53,7 +53,29 @@ bool SceneSourceOptions::Check() const {
   return min_confidence >= 0 && min_confidence <= 1 && min_depth_m >= 0 &&
          max_depth_m > min_depth_m && std::isfinite(lidar_window_before_s) &&
          std::isfinite(lidar_window_after_s) && lidar_window_before_s >= 0 &&
-         lidar_window_after_s >= 0;
+         lidar_window_after_s >= 0 && dense_width >= 0 &&
+         dense_width <= 16384 && completion.Check();
+}
+
+std::string ToString(LidarWindow window) {
+  switch (window) {
+    case LidarWindow::kCausal:
+      return "causal";
+    case LidarWindow::kClip:
+      return "clip";
+    case LidarWindow::kExplicit:
+      return "explicit";
+  }
+  return "causal";
+}
+
+LidarWindow ParseLidarWindow(const std::string& text) {
+  for (LidarWindow w :
+       {LidarWindow::kCausal, LidarWindow::kClip, LidarWindow::kExplicit}) {
+    if (text == ToString(w)) return w;
+  }
+  throw InputError("LiDAR window '" + text +
+                   "': expected causal, clip or explicit");
 }
 
 std::vector<std::string> SceneSourceNames() {

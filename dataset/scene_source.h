@@ -19,6 +19,7 @@
 
 #include "dataset/drive_clip.h"
 #include "geometry/camera.h"
+#include "geometry/depth_completion.h"
 #include "geometry/point_cloud.h"
 #include "geometry/trajectory.h"
 
@@ -32,6 +33,22 @@ enum class PointmapFilter {
   // The released inference scripts: every pixel with finite positive depth.
   kReleased,
 };
+
+// The sweeps the lidar-dense source projects into frame 0.
+enum class LidarWindow {
+  // Sweeps in [t0 - lidar_window_before_s, t0 + 50 ms] (the sweep in
+  // progress at frame 0 included): what a car has at frame 0 (inference
+  // time). The default.
+  kCausal,
+  // Sweeps over the whole clip, [t0 - lidar_window_before_s, last frame]:
+  // denser, uses the future (StreetCrafter-style).
+  kClip,
+  // Sweeps in [t0 - lidar_window_before_s, t0 + lidar_window_after_s].
+  kExplicit,
+};
+// "causal", "clip", "explicit"; Parse throws InputError for other text.
+std::string ToString(LidarWindow window);
+LidarWindow ParseLidarWindow(const std::string& text);
 
 // How a trajectory given by the user is placed in the scene frame.
 enum class TrajectoryAnchor {
@@ -93,6 +110,8 @@ struct ConditionScene {
   // refinement (paper eq. 3), when the source ran it.
   std::optional<double> reprojection_rms_px_before;
   std::optional<double> reprojection_rms_px_after;
+  // Frame-0 depth completion (lidar-dense): support and coverage.
+  std::optional<DepthCompletionReport> completion;
 
   bool metric() const { return units == "metres"; }
   // The frame-0 camera for an output of width x height, resized (and
@@ -119,6 +138,14 @@ struct SceneSourceOptions {
   // LiDAR aggregation: sweeps within [t0 - before, t0 + after] seconds.
   double lidar_window_before_s = 0.5;
   double lidar_window_after_s = 1.5;
+  // lidar-dense: the window policy (the "lidar" source always uses
+  // [t0 - before, t0 + after]).
+  LidarWindow dense_window = LidarWindow::kCausal;
+  // lidar-dense: width (pixels) of the frame-0 depth image that is completed
+  // and unprojected (the frame-0 camera scaled to it; 0 = the camera's own).
+  int dense_width = 800;
+  // lidar-dense: the completion (geometry/depth_completion.h).
+  DepthCompletionOptions completion;
   // True if every field is in range.
   bool Check() const;
 };

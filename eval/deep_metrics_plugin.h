@@ -24,8 +24,9 @@ using DeepMetricsPluginEntry = DeepMetricsPluginInfo (*)();
 
 }  // namespace geodrive
 
-#define GEODRIVE_DEEP_METRICS_PLUGIN_ENTRY(load_features, load_lpips) \
-  extern "C" __attribute__((visibility("default")))                   \
-  ::geodrive::DeepMetricsPluginInfo GeodriveDeepMetricsPlugin() {     \
-    return {GEODRIVE_VERSION, load_features, load_lpips};             \
+#define GEODRIVE_DEEP_METRICS_PLUGIN_ENTRY(load_features, load_lpips)          \
+  extern "C"                                                                   \
+      __attribute__((visibility("default"))) ::geodrive::DeepMetricsPluginInfo \
+      GeodriveDeepMetricsPlugin() {                                            \
+    return {GEODRIVE_VERSION, load_features, load_lpips};                      \
   }

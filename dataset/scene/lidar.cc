@@ -12,60 +12,12 @@
 #include <limits>
 
 #include "dataset/scene/define.h"
+#include "dataset/scene/lidar_sweeps.h"
 #include "geometry/image_io.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
 namespace {
-
-// Static sweep points in camera 0's frame, with their sweep times.
-PointCloud AggregateSweeps(const DriveClip& clip,
-                           const SceneSourceOptions& options,
-                           std::vector<int64_t>* point_time) {
-  const LidarProvider& lidar = *clip.lidar;
-  const int64_t t0 = clip.frames.front().timestamp_us;
-  const int64_t lo =
-      t0 - static_cast<int64_t>(options.lidar_window_before_s * 1e6);
-  const int64_t hi =
-      t0 + static_cast<int64_t>(options.lidar_window_after_s * 1e6);
-  // [R | t]: one matrix product per point instead of a quaternion rotation
-  // (these loops run over every point of every sweep, and every frame).
-  const Matrix3x4d cam0_from_world =
-      clip.frames.front().world_from_cam.Inverse().ToMatrix3x4();
-  constexpr double kBoxMargin = 0.3;
-  PointCloud cloud;
-  for (size_t s : lidar.SweepsBetween(lo, hi)) {
-    const LidarSweepInfo& info = lidar.Sweeps()[s];
-    const PointCloud sweep = lidar.Load(s);
-    const Matrix3x4d world_from_lidar = info.WorldFromSensor().ToMatrix3x4();
-    const std::vector<ClipBox> boxes = lidar.Boxes(s);
-    // Each box's bounding sphere (grown by the margin): the exact test runs
-    // only for points inside it.
-    std::vector<double> radius2(boxes.size());
-    for (size_t b = 0; b < boxes.size(); ++b) {
-      const double r =
-          boxes[b].box.HalfExtents().norm() + kBoxMargin * std::sqrt(3.0);
-      radius2[b] = r * r;
-    }
-    for (size_t i = 0; i < sweep.size(); ++i) {
-      const Eigen::Vector3d p = sweep.positions[i].cast<double>();
-      if (p.head<2>().norm() < 2.5) continue;  // ego vehicle returns
-      const Eigen::Vector3d g =
-          world_from_lidar.leftCols<3>() * p + world_from_lidar.col(3);
-      bool in_box = false;
-      for (size_t b = 0; b < boxes.size() && !in_box; ++b) {
-        in_box = (g - boxes[b].box.center).squaredNorm() <= radius2[b] &&
-                 boxes[b].box.Contains(g, kBoxMargin);
-      }
-      if (in_box) continue;
-      cloud.positions.push_back(
-          (cam0_from_world.leftCols<3>() * g + cam0_from_world.col(3))
-              .cast<float>());
-      point_time->push_back(info.timestamp_us);
-    }
-  }
-  return cloud;
-}
 
 // Colours each point from the nearest-in-time frame that sees it; drops the
 // points that no frame sees.
@@ -153,7 +105,11 @@ class LidarSceneSource : public SceneSource {
                          images->size(), " images for ", clip.frames.size(),
                          " frames");
     std::vector<int64_t> point_time;
-    const PointCloud all = AggregateSweeps(clip, options, &point_time);
+    const int64_t t0 = clip.frames.front().timestamp_us;
+    const PointCloud all = AggregateStaticSweeps(
+        clip, t0 - static_cast<int64_t>(options.lidar_window_before_s * 1e6),
+        t0 + static_cast<int64_t>(options.lidar_window_after_s * 1e6),
+        &point_time);
     ConditionScene scene;
     scene.cloud = ColourFromFrames(clip, *images, all, point_time);
     GEODRIVE_CHECK_INPUT(!scene.cloud.empty(), clip.id,

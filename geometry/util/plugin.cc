@@ -28,8 +28,8 @@ std::vector<std::string> PluginSearchPath() {
   }
   const std::string exe_folder = ExecutableFolder();
   if (!exe_folder.empty()) {
-    folders.push_back(
-        (fs::path(exe_folder) / GEODRIVE_PLUGIN_RELATIVE_DIR).lexically_normal());
+    folders.push_back((fs::path(exe_folder) / GEODRIVE_PLUGIN_RELATIVE_DIR)
+                          .lexically_normal());
   }
   folders.push_back(GEODRIVE_PLUGIN_BUILD_DIR);
   return folders;
@@ -63,8 +63,8 @@ void* LoadPluginSymbol(const std::string& file_name,
   void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) {
     const char* why = dlerror();
-    throw std::runtime_error(path + ": cannot load plugin: " +
-                             (why ? why : "unknown dlopen error"));
+    throw std::runtime_error(
+        path + ": cannot load plugin: " + (why ? why : "unknown dlopen error"));
   }
   dlerror();
   void* address = dlsym(handle, symbol.c_str());

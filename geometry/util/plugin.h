@@ -5,7 +5,8 @@
 // process that does not use them does not pay their start-up
 // (docs/PERFORMANCE.md, "Start-up"). A plugin is found by its file name in:
 //   1. $GEODRIVE_PLUGIN_DIR, when set;
-//   2. the installed layout: <folder of the running executable>/../lib.../geodrive
+//   2. the installed layout: <folder of the running
+//   executable>/../lib.../geodrive
 //      (the relative path is fixed at configure time from the install dirs);
 //   3. the build tree's plugin folder (<build>/lib/geodrive), so that binaries
 //      and tests run from the build tree find the plugins built with them.

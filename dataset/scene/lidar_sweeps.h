@@ -1,0 +1,23 @@
+#pragma once
+// For the LiDAR scene sources of dataset/scene/ only: the clip's sweeps in a
+// time window, motion-compensated with each sweep's ego pose into camera 0's
+// frame. Points near the ego vehicle (< 2.5 m horizontally) and inside any
+// annotated box of the sweep (grown 0.3 m) are dropped: what is left is the
+// static scene.
+
+#include <cstdint>
+#include <vector>
+
+#include "dataset/drive_clip.h"
+#include "geometry/point_cloud.h"
+
+namespace geodrive {
+
+// Static points of the sweeps with timestamps in [lo, hi] (microseconds), in
+// camera 0's frame; `point_time` receives each point's sweep time.
+PointCloud AggregateStaticSweeps(const DriveClip& clip,
+                                 int64_t lo,
+                                 int64_t hi,
+                                 std::vector<int64_t>* point_time);
+
+}  // namespace geodrive

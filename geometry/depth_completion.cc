@@ -1,0 +1,239 @@
+#include "geometry/depth_completion.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <vector>
+
+#include "geometry/util/status.h"
+
+namespace geodrive {
+namespace {
+
+bool OddPositive(int k) { return k >= 1 && k % 2 == 1 && k <= 255; }
+
+cv::Mat FullKernel(int side) {
+  return cv::getStructuringElement(cv::MORPH_RECT, cv::Size(side, side));
+}
+
+// Ku et al.'s diamond: |dx| + |dy| <= side / 2.
+cv::Mat DiamondKernel(int side) {
+  cv::Mat k(side, side, CV_8U, cv::Scalar(0));
+  const int r = side / 2;
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x)
+      if (std::abs(x - r) + std::abs(y - r) <= r) k.at<uint8_t>(y, x) = 1;
+  return k;
+}
+
+// Empty pixels of `inverted` (value <= 0) take the dilation by `kernel`.
+void FillEmpty(cv::Mat* inverted, const cv::Mat& kernel) {
+  cv::Mat dilated;
+  cv::dilate(*inverted, dilated, kernel);
+  dilated.copyTo(*inverted, *inverted <= 0.f);
+}
+
+// Filled pixels (value > 0) take `filtered`.
+void ReplaceFilled(cv::Mat* inverted, const cv::Mat& filtered) {
+  filtered.copyTo(*inverted, *inverted > 0.f);
+}
+
+// Per column, the first supported row: the top-most return within
+// +-half_width columns (rows() when none).
+std::vector<int> SupportEnvelope(const cv::Mat& sparse, int half_width) {
+  const int w = sparse.cols, h = sparse.rows;
+  std::vector<int> top(w, h);
+  for (int y = h - 1; y >= 0; --y) {
+    const float* row = sparse.ptr<float>(y);
+    for (int x = 0; x < w; ++x)
+      if (row[x] > 0.f) top[x] = y;
+  }
+  std::vector<int> envelope(w, h);
+  for (int x = 0; x < w; ++x) {
+    const int lo = std::max(0, x - half_width);
+    const int hi = std::min(w - 1, x + half_width);
+    envelope[x] = *std::min_element(top.begin() + lo, top.begin() + hi + 1);
+  }
+  return envelope;
+}
+
+// SplitMix64: a seeded, platform-independent choice per pixel.
+uint64_t Mix(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+}  // namespace
+
+cv::Mat SparseDepthImage(const std::vector<Eigen::Vector3f>& points_in_camera,
+                         const PinholeCamera& camera,
+                         double min_depth_m) {
+  cv::Mat depth(camera.height, camera.width, CV_32F, cv::Scalar(0));
+  for (const Eigen::Vector3f& p : points_in_camera) {
+    if (!(p.z() >= min_depth_m)) continue;
+    const Eigen::Vector2d uv = camera.Project(p.cast<double>());
+    const double x = std::round(uv.x()), y = std::round(uv.y());
+    if (!(x >= 0 && y >= 0 && x < camera.width && y < camera.height)) continue;
+    float& d = depth.at<float>(static_cast<int>(y), static_cast<int>(x));
+    if (d == 0.f || p.z() < d) d = p.z();
+  }
+  return depth;
+}
+
+bool DepthCompletionOptions::Check() const {
+  return std::isfinite(max_depth_m) && max_depth_m > 0 &&
+         OddPositive(diamond_kernel) && OddPositive(close_kernel) &&
+         OddPositive(small_fill_kernel) && OddPositive(large_fill_kernel) &&
+         (median_kernel == 1 || median_kernel == 3 || median_kernel == 5) &&
+         OddPositive(gaussian_kernel) && envelope_half_width >= 0;
+}
+
+std::string DepthCompletionReport::BriefReport() const {
+  std::ostringstream s;
+  s.precision(3);
+  s << input_pixels << " returns, supported " << supported_fraction
+    << " of the image, " << coverage_of_supported << " of it completed ("
+    << coverage << " of all pixels)";
+  return s.str();
+}
+
+std::string DepthCompletionAccuracy::BriefReport() const {
+  std::ostringstream s;
+  s.precision(3);
+  s << covered << "/" << held_out << " held-out returns covered: MAE " << mae_m
+    << " m, RMSE " << rmse_m << " m, within 5 % " << within_5_percent
+    << ", within 10 % " << within_10_percent;
+  return s.str();
+}
+
+cv::Mat CompleteDepth(const cv::Mat& sparse,
+                      const DepthCompletionOptions& options,
+                      DepthCompletionReport* report) {
+  GEODRIVE_CHECK_INPUT(options.Check(),
+                       "depth completion: invalid options (kernels must be "
+                       "odd and positive, median 1, 3 or 5, max depth > 0)");
+  GEODRIVE_CHECK_INPUT(sparse.type() == CV_32F && !sparse.empty(),
+                       "depth completion: the sparse depth must be a "
+                       "non-empty float32 image");
+  const float max_depth = static_cast<float>(options.max_depth_m);
+  // Inverted depth: nearer = larger, so dilations keep the nearest surface.
+  cv::Mat inverted(sparse.size(), CV_32F, cv::Scalar(0));
+  int64_t returns = 0;
+  for (int y = 0; y < sparse.rows; ++y) {
+    const float* in = sparse.ptr<float>(y);
+    float* out = inverted.ptr<float>(y);
+    for (int x = 0; x < sparse.cols; ++x) {
+      GEODRIVE_CHECK_INPUT(std::isfinite(in[x]) && in[x] >= 0.f,
+                           "depth completion: sparse depth at (", x, ", ", y,
+                           ") is ", in[x], " (expected >= 0, 0 = none)");
+      if (in[x] > 0.f && in[x] <= max_depth) {
+        out[x] = max_depth - in[x] + 1e-3f;  // > 0 even at max depth
+        ++returns;
+      }
+    }
+  }
+  cv::dilate(inverted, inverted, DiamondKernel(options.diamond_kernel));
+  cv::morphologyEx(inverted, inverted, cv::MORPH_CLOSE,
+                   FullKernel(options.close_kernel));
+  FillEmpty(&inverted, FullKernel(options.small_fill_kernel));
+  FillEmpty(&inverted, FullKernel(options.large_fill_kernel));
+  cv::Mat filtered;
+  if (options.median_kernel > 1) {
+    cv::medianBlur(inverted, filtered, options.median_kernel);
+    ReplaceFilled(&inverted, filtered);
+  }
+  if (options.gaussian_kernel > 1) {
+    cv::GaussianBlur(inverted, filtered,
+                     cv::Size(options.gaussian_kernel, options.gaussian_kernel),
+                     0, 0, cv::BORDER_REFLECT_101);
+    ReplaceFilled(&inverted, filtered);
+  }
+  const std::vector<int> envelope =
+      SupportEnvelope(sparse, options.envelope_half_width);
+  cv::Mat dense(sparse.size(), CV_32F, cv::Scalar(0));
+  int64_t supported = 0, completed_supported = 0, completed = 0;
+  for (int x = 0; x < sparse.cols; ++x) {
+    float top_depth = 0.f;
+    for (int y = sparse.rows - 1; y >= 0; --y) {
+      const float v = inverted.at<float>(y, x);
+      const float d = v > 0.f ? max_depth + 1e-3f - v : 0.f;
+      if (y >= envelope[x]) {
+        ++supported;
+        if (d > 0.f) {
+          dense.at<float>(y, x) = d;
+          top_depth = d;
+          ++completed_supported;
+          ++completed;
+        }
+      } else if (options.fill_above_envelope && top_depth > 0.f) {
+        dense.at<float>(y, x) = top_depth;
+        ++completed;
+      }
+    }
+  }
+  if (report) {
+    const double pixels = static_cast<double>(sparse.total());
+    report->input_pixels = returns;
+    report->supported_fraction = supported / pixels;
+    report->coverage_of_supported =
+        supported > 0 ? static_cast<double>(completed_supported) / supported
+                      : 0.0;
+    report->coverage = completed / pixels;
+  }
+  return dense;
+}
+
+DepthCompletionAccuracy HoldOutAccuracy(const cv::Mat& sparse,
+                                        double fraction,
+                                        uint64_t seed,
+                                        const DepthCompletionOptions& options) {
+  GEODRIVE_CHECK_INPUT(fraction > 0 && fraction < 1,
+                       "hold-out fraction must be in (0, 1), got ", fraction);
+  GEODRIVE_CHECK_INPUT(sparse.type() == CV_32F,
+                       "depth completion: the sparse depth must be float32");
+  const double threshold =
+      fraction * static_cast<double>(std::numeric_limits<uint64_t>::max());
+  cv::Mat kept = sparse.clone();
+  std::vector<std::pair<cv::Point, float>> held;
+  for (int y = 0; y < sparse.rows; ++y) {
+    for (int x = 0; x < sparse.cols; ++x) {
+      const float d = sparse.at<float>(y, x);
+      if (!(d > 0.f && d <= options.max_depth_m)) continue;
+      const uint64_t key =
+          Mix(seed ^ Mix(static_cast<uint64_t>(y) * sparse.cols + x));
+      if (static_cast<double>(key) < threshold) {
+        held.push_back({cv::Point(x, y), d});
+        kept.at<float>(y, x) = 0.f;
+      }
+    }
+  }
+  const cv::Mat dense = CompleteDepth(kept, options);
+  DepthCompletionAccuracy a;
+  a.held_out = static_cast<int64_t>(held.size());
+  double abs_sum = 0, sq_sum = 0;
+  int64_t in5 = 0, in10 = 0;
+  for (const auto& [p, truth] : held) {
+    const float d = dense.at<float>(p);
+    if (d <= 0.f) continue;
+    ++a.covered;
+    const double e = std::abs(static_cast<double>(d) - truth);
+    abs_sum += e;
+    sq_sum += e * e;
+    in5 += e <= 0.05 * truth;
+    in10 += e <= 0.10 * truth;
+  }
+  if (a.covered > 0) {
+    const double n = static_cast<double>(a.covered);
+    a.mae_m = abs_sum / n;
+    a.rmse_m = std::sqrt(sq_sum / n);
+    a.within_5_percent = in5 / n;
+    a.within_10_percent = in10 / n;
+  }
+  return a;
+}
+
+}  // namespace geodrive

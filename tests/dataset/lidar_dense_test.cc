@@ -1,0 +1,167 @@
+// Depth completion (geometry/depth_completion.h) and the lidar-dense scene
+// source (issue 22): exact truth on synthetic depth images, held-out LiDAR
+// returns and frame-0 coverage on the real nuScenes scene-0916.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+
+#include "dataset/drive_dataset.h"
+#include "dataset/scene/lidar_sweeps.h"
+#include "dataset/scene_source.h"
+#include "geometry/depth_completion.h"
+#include "geometry/util/status.h"
+#include "tests/common/test_util.h"
+
+namespace geodrive {
+namespace {
+
+// A wall at 20 m seen through scan lines every 9 rows from row 60 down to the
+// bottom, one return every 2 columns, and a box at 8 m in front of it.
+cv::Mat ScanLines(int height, int width) {
+  cv::Mat sparse(height, width, CV_32F, cv::Scalar(0));
+  for (int y = 60; y < height; y += 9)
+    for (int x = 0; x < width; x += 2)
+      sparse.at<float>(y, x) = (x >= 100 && x < 160 && y >= 120) ? 8.f : 20.f;
+  return sparse;
+}
+
+TEST(DepthCompletion, WallAndBoxFromScanLines) {
+  const int h = 240, w = 320;
+  DepthCompletionReport report;
+  const cv::Mat dense = CompleteDepth(ScanLines(h, w), {}, &report);
+  // Rows above the top scan line have no support and stay empty.
+  for (int y = 0; y < 60; ++y)
+    for (int x = 0; x < w; ++x) ASSERT_EQ(dense.at<float>(y, x), 0.f);
+  EXPECT_NEAR(report.supported_fraction, (h - 60.0) / h, 1e-12);
+  // Every supported pixel is filled (scan lines 9 rows apart, the last at
+  // row 231: the large fill reaches 15 rows below it).
+  EXPECT_EQ(report.coverage_of_supported, 1.0);
+  EXPECT_NEAR(report.coverage, (h - 60.0) / h, 1e-12);
+  EXPECT_EQ(report.input_pixels, 20 * (w / 2));
+  // Away from the box edges (beyond the reach of the dilations, 2 + 3 + 15
+  // pixels, plus the blurs' 2 on each side of the box's columns 100..159), the
+  // wall and the box keep their depth (float rounding of the inversion
+  // 100 - d + 0.001 and back: < 1e-4 m).
+  for (int y = 60; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const bool near_edge = (x > 70 && x < 190 && y > 90);
+      const bool in_box = (x >= 116 && x < 144 && y >= 136);
+      if (!near_edge) {
+        ASSERT_NEAR(dense.at<float>(y, x), 20.f, 1e-4) << x << "," << y;
+      } else if (in_box) {
+        ASSERT_NEAR(dense.at<float>(y, x), 8.f, 1e-4) << x << "," << y;
+      }
+    }
+  }
+  // The dilations keep the nearest surface: near the box's edges the fill
+  // takes 8 m, never a depth between the two surfaces beyond the blur.
+  int between = 0;
+  for (int y = 60; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float d = dense.at<float>(y, x);
+      between += d > 8.5f && d < 19.5f;
+    }
+  // Only the 5x5 median/Gaussian blur mixes the two: a band of a few pixels
+  // along the box's outline (3 edges x ~120 px x 4 px).
+  EXPECT_LT(between, 3 * 120 * 4);
+}
+
+TEST(DepthCompletion, FillAboveEnvelopeIsOptional) {
+  DepthCompletionOptions o;
+  o.fill_above_envelope = true;
+  DepthCompletionReport report;
+  const cv::Mat dense = CompleteDepth(ScanLines(240, 320), o, &report);
+  EXPECT_NEAR(dense.at<float>(0, 10), 20.f, 1e-4);
+  EXPECT_EQ(report.coverage, 1.0);
+  EXPECT_NEAR(report.supported_fraction, 180.0 / 240, 1e-12);
+}
+
+TEST(DepthCompletion, BadInputIsAnInputError) {
+  EXPECT_THROW(CompleteDepth(cv::Mat(4, 4, CV_64F, cv::Scalar(1)), {}),
+               InputError);
+  cv::Mat nan(4, 4, CV_32F, cv::Scalar(0));
+  nan.at<float>(1, 1) = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(CompleteDepth(nan, {}), InputError);
+  DepthCompletionOptions even;
+  even.large_fill_kernel = 30;
+  EXPECT_FALSE(even.Check());
+  EXPECT_THROW(CompleteDepth(ScanLines(240, 320), even), InputError);
+  EXPECT_THROW(HoldOutAccuracy(ScanLines(240, 320), 1.5, 1, {}), InputError);
+}
+
+TEST(DepthCompletion, HoldOutOnTheSyntheticWallIsExact) {
+  const DepthCompletionAccuracy a =
+      HoldOutAccuracy(ScanLines(240, 320), 0.2, 7, {});
+  // 20 % of 3,200 returns, each seeded: the count is near 640.
+  EXPECT_GT(a.held_out, 540);
+  EXPECT_LT(a.held_out, 740);
+  EXPECT_EQ(a.covered, a.held_out);
+  // Held-out wall returns are filled from their wall neighbours, box returns
+  // from the box, except near its outline (blur): most are exact.
+  EXPECT_GT(a.within_5_percent, 0.9);
+  EXPECT_EQ(HoldOutAccuracy(ScanLines(240, 320), 0.2, 7, {}).mae_m, a.mae_m);
+}
+
+// ---- Real data: nuScenes scene-0916 (41 keyframes, three 25-frame clips) ----
+
+constexpr char kVersion[] = "v1.0-mini-extract";
+
+std::unique_ptr<DriveDataset> OpenScene0916() {
+  DriveDatasetOptions o;
+  o.root = test::RealDataPath("nuscenes_scene0916");
+  o.version = kVersion;
+  o.frames = ClipFrameSource::kKeyframes;
+  return OpenDriveDataset(o);
+}
+
+// Held-out returns of the frame-0 sweep, completed from the rest of it (as
+// KITTI depth completion measures), per keyframe clip, at 800x450.
+TEST(LidarDenseReal, HeldOutReturnsOfTheFrame0Sweep) {
+  const auto d = OpenScene0916();
+  for (const std::string& id : d->ClipIds()) {
+    const DriveClip clip = d->LoadClip(id);
+    ASSERT_TRUE(clip.lidar && clip.frames.front().keyframe_sweep);
+    const DriveFrame& f0 = clip.frames.front();
+    const int64_t ts = clip.lidar->Sweeps()[*f0.keyframe_sweep].timestamp_us;
+    std::vector<int64_t> times;
+    const PointCloud sweep = AggregateStaticSweeps(clip, ts, ts, &times);
+    const PinholeCamera cam = ResizeCamera(f0.camera, 800, 450);
+    const cv::Mat sparse = SparseDepthImage(sweep.positions, cam);
+    const DepthCompletionAccuracy a = HoldOutAccuracy(sparse, 0.2, 2026, {});
+    std::printf("%s: %s\n", id.c_str(), a.BriefReport().c_str());
+    EXPECT_GT(a.held_out, 500);
+    EXPECT_GT(static_cast<double>(a.covered) / a.held_out, 0.9);
+    EXPECT_GT(a.within_10_percent, 0.80);
+    EXPECT_LT(a.mae_m, 2.0);
+  }
+}
+
+// Frame-0 support and coverage of the lidar-dense source (causal window).
+TEST(LidarDenseReal, CoversTheSupportedAreaOfFrame0) {
+  const auto d = OpenScene0916();
+  for (const std::string& id : d->ClipIds()) {
+    const DriveClip clip = d->LoadClip(id);
+    SceneInputs in;
+    in.clip = &clip;
+    const ConditionScene scene =
+        BuildConditionScene("lidar-dense", in, SceneSourceOptions());
+    ASSERT_TRUE(scene.completion);
+    const DepthCompletionReport& r = *scene.completion;
+    std::printf("%s: %s, %zu points\n", id.c_str(), r.BriefReport().c_str(),
+                scene.cloud.size());
+    EXPECT_TRUE(scene.metric());
+    EXPECT_GT(r.supported_fraction, 0.4);
+    EXPECT_LT(r.supported_fraction, 0.9);
+    EXPECT_GE(r.coverage_of_supported, 0.9);
+    EXPECT_EQ(static_cast<int64_t>(scene.cloud.size()),
+              std::llround(r.coverage * 800 * 450));
+  }
+}
+
+}  // namespace
+}  // namespace geodrive
