@@ -1,17 +1,37 @@
+// nuScenes reader. Loading: every table goes through the fast JSON front end
+// (simdjson over slices of whole records, parsed on all threads;
+// dataset/internal/nuscenes_json_simd.cc says why slices), which fills the
+// same flat records as the reference front end (nlohmann SAX) did; all field
+// checks and their errors live here, in RecordReader and the per-table
+// converters, and so do not depend on the front end. A table the fast front
+// end does not take (bad JSON, anything it cannot mirror exactly) is parsed
+// again by the reference front end, whose errors are the reader's JSON errors.
+// Rows of a table are committed in file order whatever thread parsed them, and
+// the first error in the old order (tables in load order, records in file
+// order) is the one thrown, so results and errors are those of a
+// single-threaded SAX load.
+
 #include "dataset/nuscenes.h"
 
+#include <omp.h>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <exception>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iomanip>
+#include <iterator>
+#include <map>
+#include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <sstream>
 #include <unordered_map>
 
+#include "dataset/internal/nuscenes_json.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/util/status.h"
 
@@ -34,21 +54,42 @@ TokenInterner& Interner() {
   return *interner;
 }
 
-int HexValue(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  return -1;
+// 16 lowercase hex digits -> their value (the first digit most significant);
+// false if any is not [0-9a-f]. Eight digits at a time in a 64-bit word
+// (SWAR): this runs for every token and reference of every record, 19 M times
+// at v1.0-trainval size.
+bool ParseHex16(const char* s, uint64_t* value) {
+  constexpr uint64_t kOnes = 0x0101010101010101ull;
+  constexpr uint64_t kHigh = 0x8080808080808080ull;
+  // Bytes strictly between m and n (for bytes < 0x80): high bit set.
+  auto between = [](uint64_t x, uint64_t m, uint64_t n) {
+    const uint64_t low = x & (kOnes * 127);
+    return (kOnes * (127 + n) - low) & ~x & (low + kOnes * (127 - m)) & kHigh;
+  };
+  uint64_t result = 0;
+  for (int half = 0; half < 2; ++half) {
+    uint64_t x;
+    std::memcpy(&x, s + 8 * half, 8);  // x's lowest byte is the first digit
+    const uint64_t ok =
+        between(x, '0' - 1, '9' + 1) | between(x, 'a' - 1, 'f' + 1);
+    if ((x & kHigh) != 0 || ok != kHigh) return false;
+    // '0'-'9' -> 0-9 and 'a'-'f' -> 10-15: low nibble + 9 if bit 6 is set.
+    const uint64_t v = (x & (kOnes * 0x0F)) + ((x >> 6) & kOnes) * 9;
+    // Pairs of digits into bytes, then bytes into 32 bits, first digit high.
+    const uint64_t t = ((v << 4) | (v >> 8)) & 0x00FF00FF00FF00FFull;
+    const uint64_t u = (t | (t >> 8)) & 0x0000FFFF0000FFFFull;
+    const uint32_t w = static_cast<uint32_t>(u | (u >> 16));
+    result = (result << 32) | __builtin_bswap32(w);
+  }
+  *value = result;
+  return true;
 }
 
 // Parses 32 lowercase hex digits; false otherwise.
 bool ParseHexToken(const char* s, size_t n, NuscenesToken* token) {
-  if (n != 32) return false;
-  uint64_t words[2] = {0, 0};
-  for (size_t i = 0; i < 32; ++i) {
-    const int v = HexValue(s[i]);
-    if (v < 0) return false;
-    words[i / 16] = (words[i / 16] << 4) | static_cast<uint64_t>(v);
-  }
+  uint64_t words[2];
+  if (n != 32 || !ParseHex16(s, &words[0]) || !ParseHex16(s + 16, &words[1]))
+    return false;
   // The all-zero and the tag pattern are reserved: intern those (practically
   // never happens).
   if ((words[0] == 0 && words[1] == 0) || words[0] == kInternTag) return false;
@@ -125,272 +166,9 @@ int TableFromName(const std::string& name) {
   return -1;
 }
 
-// ---------------------------------------------------------------------------------------------
-// Streaming JSON: a SAX handler that turns a top-level array of flat objects
-// into records.
-
-struct JsonField {
-  enum Kind { kNull, kBool, kNumber, kString, kArray, kOther };
-  std::string key;
-  Kind kind = kNull;
-  bool boolean = false;
-  double number = 0;
-  int64_t integer = 0;
-  bool is_integer = false;
-  std::string str;
-  std::vector<double> numbers;  // array elements (flattened for nested arrays)
-  std::vector<std::string> strings;  // array string elements
-  std::vector<int>
-      row_sizes;  // for arrays of arrays: the size of each inner array
-  bool array_of_other =
-      false;  // array holding something else (objects, bools, ...)
-};
-
-struct JsonRecord {
-  std::vector<JsonField> fields;
-  size_t size = 0;
-  const JsonField* Find(const char* key) const {
-    for (size_t i = 0; i < size; ++i) {
-      if (fields[i].key == key) return &fields[i];
-    }
-    return nullptr;
-  }
-};
-
-class RecordSink {
- public:
-  virtual ~RecordSink() = default;
-  virtual void OnRecord(const JsonRecord& record) = 0;
-};
-
-class TableSax {
- public:
-  using json = nlohmann::json;
-  TableSax(const std::string& path, RecordSink* sink)
-      : path_(path), sink_(sink) {}
-
-  const std::string& last_token() const { return last_token_; }
-  size_t records() const { return records_; }
-  bool finished() const { return finished_; }
-
-  bool null() { return Scalar(JsonField::kNull); }
-  bool boolean(bool v) {
-    if (InArray()) return ArrayOther();
-    JsonField* f = Current();
-    if (!f) return true;
-    f->kind = JsonField::kBool;
-    f->boolean = v;
-    return true;
-  }
-  bool number_integer(json::number_integer_t v) {
-    return Number(static_cast<double>(v), v, true);
-  }
-  bool number_unsigned(json::number_unsigned_t v) {
-    return Number(static_cast<double>(v), static_cast<int64_t>(v),
-                  v <= INT64_MAX);
-  }
-  bool number_float(json::number_float_t v, const json::string_t&) {
-    return Number(v, 0, false);
-  }
-  bool string(json::string_t& v) {
-    if (skip_ > 0) return true;
-    if (InArray()) {
-      if (array_depth_ == 1) {
-        field_->strings.emplace_back(std::move(v));
-      } else {
-        field_->array_of_other = true;
-      }
-      return true;
-    }
-    JsonField* f = Current();
-    if (!f) {
-      if (depth_ == 0) Fail("expected a JSON array of records, got a string");
-      return true;
-    }
-    f->kind = JsonField::kString;
-    f->str.swap(v);
-    return true;
-  }
-  bool binary(json::binary_t&) { return true; }
-  bool start_object(std::size_t) {
-    if (skip_ > 0 || InArray() || depth_ >= 2) {
-      if (InArray()) field_->array_of_other = true;
-      if (field_ && !InArray()) field_->kind = JsonField::kOther;
-      ++skip_;
-      return true;
-    }
-    if (depth_ == 0) Fail("expected a JSON array of records, got an object");
-    depth_ = 2;
-    record_.size = 0;
-    field_ = nullptr;
-    return true;
-  }
-  bool key(json::string_t& k) {
-    if (skip_ > 0) return true;
-    if (record_.size == record_.fields.size()) record_.fields.emplace_back();
-    field_ = &record_.fields[record_.size++];
-    field_->key.swap(k);
-    field_->kind = JsonField::kNull;
-    field_->numbers.clear();
-    field_->strings.clear();
-    field_->row_sizes.clear();
-    field_->array_of_other = false;
-    field_->is_integer = false;
-    return true;
-  }
-  bool end_object() {
-    if (skip_ > 0) {
-      --skip_;
-      return true;
-    }
-    depth_ = 1;
-    field_ = nullptr;
-    const JsonField* token = record_.Find("token");
-    if (token && token->kind == JsonField::kString) last_token_ = token->str;
-    sink_->OnRecord(record_);
-    ++records_;
-    return true;
-  }
-  bool start_array(std::size_t) {
-    if (skip_ > 0) {
-      ++skip_;
-      return true;
-    }
-    if (depth_ == 0) {
-      depth_ = 1;
-      return true;
-    }
-    if (depth_ == 1)
-      Fail("expected a record object inside the top-level array, got an array");
-    if (!field_) return true;
-    if (array_depth_ == 0) {
-      field_->kind = JsonField::kArray;
-      array_depth_ = 1;
-    } else if (array_depth_ == 1) {
-      field_->row_sizes.push_back(0);
-      array_depth_ = 2;
-    } else {
-      field_->array_of_other = true;
-      ++skip_;
-    }
-    return true;
-  }
-  bool end_array() {
-    if (skip_ > 0) {
-      --skip_;
-      return true;
-    }
-    if (array_depth_ > 0) {
-      --array_depth_;
-      return true;
-    }
-    if (depth_ == 1) {
-      depth_ = 0;
-      finished_ = true;
-    }
-    return true;
-  }
-  bool parse_error(std::size_t position,
-                   const std::string&,
-                   const nlohmann::detail::exception& e) {
-    std::string what = e.what();
-    // nlohmann prefixes "[json.exception.parse_error.101] parse error at line
-    // 1, column 2: ".
-    const size_t colon = what.find(": ");
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    std::ostringstream os;
-    os << "malformed JSON at byte " << position;
-    const JsonField* current = depth_ == 2 ? record_.Find("token") : nullptr;
-    if (current && current->kind == JsonField::kString &&
-        !current->str.empty()) {
-      os << " (in record " << current->str << ")";
-    } else if (!last_token_.empty()) {
-      os << " (after record " << last_token_ << ")";
-    } else {
-      os << " (before the first record)";
-    }
-    os << ": " << what;
-    ThrowInputError(path_, os.str());
-  }
-
- private:
-  [[noreturn]] void Fail(const std::string& what) {
-    ThrowInputError(path_, what);
-  }
-  bool InArray() const {
-    return skip_ == 0 && field_ != nullptr && array_depth_ > 0;
-  }
-  JsonField* Current() {
-    if (skip_ > 0 || depth_ != 2) return nullptr;
-    return field_;
-  }
-  bool ArrayOther() {
-    field_->array_of_other = true;
-    return true;
-  }
-  bool Scalar(JsonField::Kind kind) {
-    if (skip_ > 0) return true;
-    if (InArray()) return ArrayOther();
-    JsonField* f = Current();
-    if (f) f->kind = kind;
-    if (!f && depth_ == 0) Fail("expected a JSON array of records");
-    return true;
-  }
-  bool Number(double v, int64_t i, bool is_integer) {
-    if (skip_ > 0) return true;
-    if (InArray()) {
-      field_->numbers.push_back(v);
-      if (array_depth_ == 2) ++field_->row_sizes.back();
-      return true;
-    }
-    JsonField* f = Current();
-    if (!f) {
-      if (depth_ == 0) Fail("expected a JSON array of records, got a number");
-      return true;
-    }
-    f->kind = JsonField::kNumber;
-    f->number = v;
-    f->integer = i;
-    f->is_integer = is_integer;
-    return true;
-  }
-
-  std::string path_;
-  RecordSink* sink_;
-  JsonRecord record_;
-  JsonField* field_ = nullptr;
-  int depth_ = 0;        // 0 outside, 1 in the top array, 2 in a record
-  int array_depth_ = 0;  // nesting of arrays inside the current field
-  int skip_ = 0;         // > 0 while inside an unsupported nested value
-  size_t records_ = 0;
-  bool finished_ = false;
-  std::string last_token_;
-};
-
-// Streams one table file through `sink`; returns the file size.
-size_t ParseTableFile(const std::string& path, RecordSink* sink) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::exists(path, ec)) ThrowInputError(path, "missing table file");
-  if (fs::is_directory(path, ec))
-    ThrowInputError(path, "is a directory, expected a JSON table");
-  const size_t bytes = fs::file_size(path, ec);
-  std::ifstream in;
-  std::vector<char> buffer(1 << 20);
-  in.rdbuf()->pubsetbuf(buffer.data(),
-                        static_cast<std::streamsize>(buffer.size()));
-  in.open(path, std::ios::binary);
-  if (!in) ThrowInputError(path, "cannot open table file");
-  TableSax sax(path, sink);
-  const bool ok = nlohmann::json::sax_parse(in, &sax);
-  if (!ok || !sax.finished()) {
-    ThrowInputError(
-        path, "malformed JSON: not a complete array of records (after record ",
-        sax.last_token().empty() ? std::string("<none>") : sax.last_token(),
-        ")");
-  }
-  return bytes;
-}
+namespace nj = nuscenes_json;
+using nj::JsonField;
+using nj::JsonRecord;
 
 // ---------------------------------------------------------------------------------------------
 // Field accessors with errors naming the table file and the record token.
@@ -508,15 +286,15 @@ class RecordReader {
       Error("field '", key, "' is an absolute path (", p,
             "); a dataset cannot point outside its root");
     }
+    // Components between '/' or '\\' separators: none may be "..".
     size_t start = 0;
-    while (start <= p.size()) {
-      size_t end = p.find_first_of("/\\", start);
-      if (end == std::string::npos) end = p.size();
-      if (p.compare(start, end - start, "..") == 0 && end - start == 2) {
+    for (size_t i = 0; i <= p.size(); ++i) {
+      if (i < p.size() && p[i] != '/' && p[i] != '\\') continue;
+      if (i - start == 2 && p[start] == '.' && p[start + 1] == '.') {
         Error("field '", key, "' contains '..' (", p,
               "); a dataset cannot point outside its root");
       }
-      start = end + 1;
+      start = i + 1;
     }
     return p;
   }
@@ -533,7 +311,7 @@ class RecordReader {
 
 // A sink that calls a lambda with a RecordReader.
 template <typename Fn>
-class LambdaSink : public RecordSink {
+class LambdaSink : public nj::RecordSink {
  public:
   LambdaSink(const std::string& path, Fn fn)
       : path_(path), fn_(std::move(fn)) {}
@@ -547,10 +325,226 @@ class LambdaSink : public RecordSink {
   Fn fn_;
 };
 
+// ---------------------------------------------------------------------------------------------
+// Loading one table: slices parsed by every thread, rows committed in file
+// order, the reference front end after a fast-path failure.
+
+// Rows of a table (or of one slice of it) and what they reference, pending
+// resolution.
+template <typename Row>
+struct TableRows {
+  std::vector<Row> rows;
+  std::vector<NuscenesToken> refs;                // a fixed number per row
+  std::vector<std::vector<NuscenesToken>> lists;  // per-row token lists
+};
+
+// Moves src to the end of dst. `expected` is the final size expected: growth
+// reserves it at once, so a big table's rows are not copied (and held twice)
+// over and over; capacity never touched costs address space, not RSS.
+template <typename T>
+void AppendMoved(std::vector<T>* src, size_t expected, std::vector<T>* dst) {
+  if (dst->empty()) {
+    dst->swap(*src);
+  } else {
+    const size_t need = dst->size() + src->size();
+    if (need > dst->capacity()) dst->reserve(std::max(need, expected));
+    std::move(src->begin(), src->end(), std::back_inserter(*dst));
+  }
+  src->clear();
+}
+
+class TableTask {
+ public:
+  virtual ~TableTask() = default;
+  // Claims and parses slices until the table has none left or has failed.
+  // Never throws: errors are kept for Finish. Called on every thread.
+  virtual void Work(nj::SliceParser* parser, nj::Slice* slice) = 0;
+  // After all Work: throws the table's first error, or re-parses it with the
+  // reference front end after a fast-path failure; then moves the rows to
+  // their destination. Returns the file size (0 for a missing table).
+  virtual size_t Finish() = 0;
+};
+
+// `Fn` converts one record: fn(const RecordReader&, TableRows<Row>*).
+template <typename Row, typename Fn>
+class TypedTableTask : public TableTask {
+ public:
+  TypedTableTask(const std::string& path,
+                 bool missing,
+                 Fn fn,
+                 std::vector<Row>* rows,
+                 std::vector<NuscenesToken>* refs,
+                 std::vector<std::vector<NuscenesToken>>* lists)
+      : path_(path),
+        missing_(missing),
+        fn_(std::move(fn)),
+        rows_(rows),
+        refs_(refs),
+        lists_(lists) {
+    if (!missing_ && nj::FastFrontEndEnabled()) {
+      slicer_ = std::make_unique<nj::TableSlicer>(path_, nj::SliceBytes());
+    }
+  }
+
+  void Work(nj::SliceParser* parser, nj::Slice* slice) override {
+    if (!slicer_) return;
+    for (;;) {
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (failed_at_ != kNone) return;
+      }
+      if (!slicer_->Next(slice)) {
+        if (slicer_->failed()) Fail(slice->index, nullptr);
+        return;
+      }
+      TableRows<Row> part;
+      bool ok = false;
+      try {
+        auto convert = [&](const RecordReader& r) { fn_(r, &part); };
+        LambdaSink<decltype(convert)> sink(path_, convert);
+        ok = parser->Parse(*slice, &sink);
+        if (ok) Commit(slice->index, slice->size, &part);
+      } catch (...) {
+        Fail(slice->index, std::current_exception());
+        return;
+      }
+      if (!ok) {
+        Fail(slice->index, nullptr);
+        return;
+      }
+    }
+  }
+
+  size_t Finish() override {
+    if (missing_) return 0;
+    size_t bytes = 0;
+    if (slicer_ && failed_at_ == kNone) {
+      bytes = slicer_->file_bytes();
+    } else if (error_) {
+      std::rethrow_exception(error_);
+    } else {
+      if (slicer_) nj::CountFallback();
+      result_ = TableRows<Row>();
+      pending_.clear();
+      auto convert = [&](const RecordReader& r) { fn_(r, &result_); };
+      LambdaSink<decltype(convert)> sink(path_, convert);
+      bytes = nj::ParseTableFileSax(path_, &sink);
+    }
+    *rows_ = std::move(result_.rows);
+    if (refs_) *refs_ = std::move(result_.refs);
+    if (lists_) *lists_ = std::move(result_.lists);
+    return bytes;
+  }
+
+ private:
+  static constexpr size_t kNone = ~size_t{0};
+  struct Pending {
+    size_t bytes = 0;
+    TableRows<Row> part;
+  };
+
+  // The slice `index` failed: with `error` (a conversion error), or without
+  // (the fast front end gave up). The first failing slice in file order
+  // decides, as it would have in a single pass.
+  void Fail(size_t index, std::exception_ptr error) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (index < failed_at_) {
+      failed_at_ = index;
+      error_ = error;
+    }
+  }
+
+  // Appends the rows of slice `index` once every earlier slice is in.
+  void Commit(size_t index, size_t bytes, TableRows<Row>* part) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (index > failed_at_) return;  // the table has failed before it
+    pending_[index] = Pending{bytes, std::move(*part)};
+    for (auto it = pending_.begin();
+         it != pending_.end() && it->first == committed_;
+         it = pending_.erase(it), ++committed_) {
+      consumed_ += it->second.bytes;
+      // Rows expected in the whole file, from the bytes per row so far.
+      const double scale = 1.1 * static_cast<double>(slicer_->file_bytes()) /
+                           static_cast<double>(std::max<size_t>(consumed_, 1));
+      TableRows<Row>& p = it->second.part;
+      auto expected = [&](size_t n, size_t add) {
+        return static_cast<size_t>(static_cast<double>(n + add) * scale) + 16;
+      };
+      AppendMoved(&p.refs, expected(result_.refs.size(), p.refs.size()),
+                  &result_.refs);
+      AppendMoved(&p.lists, expected(result_.lists.size(), p.lists.size()),
+                  &result_.lists);
+      AppendMoved(&p.rows, expected(result_.rows.size(), p.rows.size()),
+                  &result_.rows);
+    }
+  }
+
+  const std::string path_;
+  const bool missing_;
+  Fn fn_;
+  std::vector<Row>* rows_;
+  std::vector<NuscenesToken>* refs_;
+  std::vector<std::vector<NuscenesToken>>* lists_;
+  std::unique_ptr<nj::TableSlicer> slicer_;
+
+  std::mutex mutex_;
+  size_t failed_at_ = kNone;
+  std::exception_ptr error_;
+  std::map<size_t, Pending> pending_;  // parsed, waiting for earlier slices
+  size_t committed_ = 0;               // slices appended to result_
+  size_t consumed_ = 0;                // their bytes
+  TableRows<Row> result_;
+};
+
+// Runs fn(i) for i in [0, n) on `num_threads` threads (0: OpenMP's default)
+// and rethrows the exception of the smallest i that threw: the error a serial
+// loop would have stopped at. Rows after it may have run too.
 template <typename Fn>
-size_t ParseTable(const std::string& path, Fn fn) {
-  LambdaSink<Fn> sink(path, std::move(fn));
-  return ParseTableFile(path, &sink);
+void ForEachRow(size_t n, int num_threads, Fn fn) {
+  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
+  if (threads <= 1 || n < 8192) {
+    for (size_t i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  std::atomic<int64_t> first_error{static_cast<int64_t>(n)};
+  std::exception_ptr error;
+  std::mutex mutex;
+#pragma omp parallel for schedule(static, 4096) num_threads(threads)
+  for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
+    if (i > first_error.load(std::memory_order_relaxed)) continue;
+    try {
+      fn(static_cast<size_t>(i));
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (i < first_error) {
+        first_error = i;
+        error = std::current_exception();
+      }
+    }
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+// Runs Work of every task on `num_threads` threads (0: OpenMP's default),
+// tables in order: the threads share a table's slices, then move on.
+void RunTableTasks(const std::vector<std::unique_ptr<TableTask>>& tasks,
+                   int num_threads) {
+  if (!nj::FastFrontEndEnabled()) return;
+  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
+  std::exception_ptr error;
+  std::mutex error_mutex;
+#pragma omp parallel num_threads(threads)
+  {
+    try {
+      nj::SliceParser parser;
+      nj::Slice slice;
+      for (const auto& task : tasks) task->Work(&parser, &slice);
+    } catch (...) {  // only allocation failures get here
+      std::lock_guard<std::mutex> lock(error_mutex);
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
 }
 
 SensorModality ParseModality(const std::string& s) {
@@ -558,6 +552,30 @@ SensorModality ParseModality(const std::string& s) {
   if (s == "lidar") return SensorModality::kLidar;
   if (s == "radar") return SensorModality::kRadar;
   return SensorModality::kUnknown;
+}
+
+// calibrated_sensor's camera_intrinsic: absent, null or [] (no K), or 3x3.
+void ReadIntrinsic(const RecordReader& r, NuscenesCalibratedSensor* c) {
+  const JsonField* k = r.Optional("camera_intrinsic");
+  if (!k || k->kind == JsonField::kNull) return;
+  if (k->kind != JsonField::kArray || k->array_of_other ||
+      !k->strings.empty()) {
+    r.Error("camera_intrinsic is not a 3x3 matrix or []");
+  }
+  if (k->numbers.empty() && k->row_sizes.empty()) return;
+  const bool ok = k->row_sizes.size() == 3 && k->row_sizes[0] == 3 &&
+                  k->row_sizes[1] == 3 && k->row_sizes[2] == 3 &&
+                  k->numbers.size() == 9;
+  if (!ok) {
+    r.Error("camera_intrinsic is not 3x3 (got ", k->row_sizes.size(), " rows, ",
+            k->numbers.size(), " values)");
+  }
+  for (int i = 0; i < 9; ++i) {
+    if (!std::isfinite(k->numbers[i]))
+      r.Error("camera_intrinsic has a non-finite value");
+    c->camera_intrinsic(i / 3, i % 3) = k->numbers[i];
+  }
+  c->has_intrinsic = true;
 }
 
 }  // namespace
@@ -630,6 +648,8 @@ void NuscenesOptions::Check() const {
   GEODRIVE_CHECK_INPUT(
       quaternion_norm_tol > 0 && quaternion_norm_tol < 0.5,
       "nuScenes options: quaternion_norm_tol must be in (0, 0.5)");
+  GEODRIVE_CHECK_INPUT(num_threads >= 0 && num_threads <= 256,
+                       "nuScenes options: num_threads must be in 0..256");
 }
 
 std::string NuscenesLoadSummary::BriefReport() const {
@@ -674,23 +694,29 @@ struct PendingRefs {
 
 }  // namespace
 
-// Loader state: table paths and the references pending resolution.
+// Loader state: table paths, the table tasks (in load order) and the
+// references pending resolution.
 struct Nuscenes::LoadState {
   PendingRefs refs[kNumTables];
   std::vector<std::vector<NuscenesToken>> ann_attributes;
   std::vector<std::vector<NuscenesToken>> map_logs;
   std::string paths[kNumTables];
   bool missing[kNumTables] = {};
+  std::vector<std::unique_ptr<TableTask>> tasks;
 
-  // Parses table t unless it is a missing optional table; returns its bytes.
-  template <typename Fn>
-  size_t Parse(int t, Fn fn) {
-    return missing[t] ? size_t{0} : ParseTable(paths[t], fn);
-  }
-  // The pending references of `table`, `per_row` per record.
-  PendingRefs& Refs(int table, int per_row) {
-    refs[table].per_row = per_row;
-    return refs[table];
+  // Adds table t's task: `fn(const RecordReader&, TableRows<Row>*)` converts
+  // a record; rows go to `rows`, `per_row` references per row to refs[t],
+  // per-row token lists to `lists`.
+  template <typename Row, typename Fn>
+  void Add(int t,
+           std::vector<Row>* rows,
+           Fn fn,
+           int per_row = 0,
+           std::vector<std::vector<NuscenesToken>>* lists = nullptr) {
+    refs[t].per_row = per_row;
+    tasks.push_back(std::make_unique<TypedTableTask<Row, Fn>>(
+        paths[t], missing[t], std::move(fn), rows,
+        per_row > 0 ? &refs[t].tokens : nullptr, lists));
   }
 };
 
@@ -713,241 +739,296 @@ void Nuscenes::Load() {
     state.missing[t] = true;
     summary_.missing_tables.push_back(kTableNames[t]);
   }
-  size_t bytes = LoadDescriptionTables(&state);
-  bytes += LoadCaptureTables(&state);
+  AddDescriptionTables(&state);
+  AddCaptureTables(&state);
+  RunTableTasks(state.tasks, options_.num_threads);
+  // In load order: the first table with an error throws it.
+  size_t bytes = 0;
+  for (const auto& task : state.tasks) bytes += task->Finish();
+  state.tasks.clear();
   summary_.json_bytes = bytes;
   Resolve(&state);
 }
 
 // Categories, attributes, visibilities, instances, sensors, calibrations, ego
 // poses, logs and maps.
-size_t Nuscenes::LoadDescriptionTables(LoadState* state) {
+void Nuscenes::AddDescriptionTables(LoadState* state) {
   const double qtol = options_.quaternion_norm_tol;
-  size_t bytes = 0;
-  bytes += state->Parse(kCategory, [&](const RecordReader& r) {
-    NuscenesCategory c;
-    c.token = r.token();
-    c.name = r.String("name");
-    c.description = r.OptionalString("description");
-    c.index = static_cast<int>(r.OptionalInt("index", -1));
-    categories_.push_back(std::move(c));
-  });
-  bytes += state->Parse(kAttribute, [&](const RecordReader& r) {
-    NuscenesAttribute a;
-    a.token = r.token();
-    a.name = r.String("name");
-    a.description = r.OptionalString("description");
-    attributes_.push_back(std::move(a));
-  });
-  bytes += state->Parse(kVisibility, [&](const RecordReader& r) {
-    NuscenesVisibility v;
-    v.token = r.token();
-    v.level = r.String("level");
-    v.description = r.OptionalString("description");
-    visibilities_.push_back(std::move(v));
-  });
-  {
-    PendingRefs& p = state->Refs(kInstance, 3);
-    bytes += state->Parse(kInstance, [&](const RecordReader& r) {
-      NuscenesInstance in;
-      in.token = r.token();
-      in.nbr_annotations =
-          static_cast<int>(r.OptionalInt("nbr_annotations", 0));
-      p.tokens.push_back(r.Ref("category_token"));
-      p.tokens.push_back(r.Ref("first_annotation_token"));
-      p.tokens.push_back(r.Ref("last_annotation_token"));
-      instances_.push_back(in);
-    });
-  }
-  bytes += state->Parse(kSensor, [&](const RecordReader& r) {
-    NuscenesSensor s;
-    s.token = r.token();
-    s.channel = r.String("channel");
-    s.modality = ParseModality(r.String("modality"));
-    if (s.modality == SensorModality::kUnknown)
-      r.Error("unknown sensor modality");
-    sensors_.push_back(std::move(s));
-  });
-  {
-    PendingRefs& p = state->Refs(kCalibratedSensor, 1);
-    bytes += state->Parse(kCalibratedSensor, [&](const RecordReader& r) {
-      NuscenesCalibratedSensor c;
-      c.token = r.token();
-      c.ego_from_sensor =
-          Rigid3d(r.Quat("rotation", qtol), r.Vec3("translation"));
-      p.tokens.push_back(r.Ref("sensor_token"));
-      const JsonField* k = r.Optional("camera_intrinsic");
-      if (k && k->kind != JsonField::kNull) {
-        if (k->kind != JsonField::kArray || k->array_of_other ||
-            !k->strings.empty()) {
-          r.Error("camera_intrinsic is not a 3x3 matrix or []");
-        }
-        if (!k->numbers.empty() || !k->row_sizes.empty()) {
-          const bool ok = k->row_sizes.size() == 3 && k->row_sizes[0] == 3 &&
-                          k->row_sizes[1] == 3 && k->row_sizes[2] == 3 &&
-                          k->numbers.size() == 9;
-          if (!ok) {
-            r.Error("camera_intrinsic is not 3x3 (got ", k->row_sizes.size(),
-                    " rows, ", k->numbers.size(), " values)");
-          }
-          for (int i = 0; i < 9; ++i) {
-            if (!std::isfinite(k->numbers[i]))
-              r.Error("camera_intrinsic has a non-finite value");
-            c.camera_intrinsic(i / 3, i % 3) = k->numbers[i];
-          }
-          c.has_intrinsic = true;
-        }
-      }
-      calibrated_sensors_.push_back(c);
-    });
-  }
-  {
-    ego_poses_.reserve(1 << 16);
-    bytes += state->Parse(kEgoPose, [&](const RecordReader& r) {
-      NuscenesEgoPose e;
-      e.token = r.token();
-      e.timestamp = r.Int("timestamp");
-      e.global_from_ego =
-          Rigid3d(r.Quat("rotation", qtol), r.Vec3("translation"));
-      ego_poses_.push_back(e);
-    });
-  }
-  bytes += state->Parse(kLog, [&](const RecordReader& r) {
-    NuscenesLog l;
-    l.token = r.token();
-    l.logfile = r.OptionalString("logfile");
-    l.vehicle = r.OptionalString("vehicle");
-    l.date_captured = r.OptionalString("date_captured");
-    l.location = r.OptionalString("location");
-    logs_.push_back(std::move(l));
-  });
-  bytes += state->Parse(kMap, [&](const RecordReader& r) {
-    NuscenesMap m;
-    m.token = r.token();
-    m.category = r.OptionalString("category");
-    m.filename = r.RelativePath("filename");
-    state->map_logs.push_back(r.RefList("log_tokens"));
-    maps_.push_back(std::move(m));
-  });
-  return bytes;
+  using Tokens = std::vector<NuscenesToken>;
+  state->Add(kCategory, &categories_,
+             [](const RecordReader& r, TableRows<NuscenesCategory>* out) {
+               NuscenesCategory c;
+               c.token = r.token();
+               c.name = r.String("name");
+               c.description = r.OptionalString("description");
+               c.index = static_cast<int>(r.OptionalInt("index", -1));
+               out->rows.push_back(std::move(c));
+             });
+  state->Add(kAttribute, &attributes_,
+             [](const RecordReader& r, TableRows<NuscenesAttribute>* out) {
+               NuscenesAttribute a;
+               a.token = r.token();
+               a.name = r.String("name");
+               a.description = r.OptionalString("description");
+               out->rows.push_back(std::move(a));
+             });
+  state->Add(kVisibility, &visibilities_,
+             [](const RecordReader& r, TableRows<NuscenesVisibility>* out) {
+               NuscenesVisibility v;
+               v.token = r.token();
+               v.level = r.String("level");
+               v.description = r.OptionalString("description");
+               out->rows.push_back(std::move(v));
+             });
+  state->Add(
+      kInstance, &instances_,
+      [](const RecordReader& r, TableRows<NuscenesInstance>* out) {
+        NuscenesInstance in;
+        in.token = r.token();
+        in.nbr_annotations =
+            static_cast<int>(r.OptionalInt("nbr_annotations", 0));
+        out->refs.push_back(r.Ref("category_token"));
+        out->refs.push_back(r.Ref("first_annotation_token"));
+        out->refs.push_back(r.Ref("last_annotation_token"));
+        out->rows.push_back(in);
+      },
+      3);
+  state->Add(kSensor, &sensors_,
+             [](const RecordReader& r, TableRows<NuscenesSensor>* out) {
+               NuscenesSensor s;
+               s.token = r.token();
+               s.channel = r.String("channel");
+               s.modality = ParseModality(r.String("modality"));
+               if (s.modality == SensorModality::kUnknown)
+                 r.Error("unknown sensor modality");
+               out->rows.push_back(std::move(s));
+             });
+  state->Add(
+      kCalibratedSensor, &calibrated_sensors_,
+      [qtol](const RecordReader& r, TableRows<NuscenesCalibratedSensor>* out) {
+        NuscenesCalibratedSensor c;
+        c.token = r.token();
+        c.ego_from_sensor =
+            Rigid3d(r.Quat("rotation", qtol), r.Vec3("translation"));
+        out->refs.push_back(r.Ref("sensor_token"));
+        ReadIntrinsic(r, &c);
+        out->rows.push_back(c);
+      },
+      1);
+  state->Add(kEgoPose, &ego_poses_,
+             [qtol](const RecordReader& r, TableRows<NuscenesEgoPose>* out) {
+               NuscenesEgoPose e;
+               e.token = r.token();
+               e.timestamp = r.Int("timestamp");
+               e.global_from_ego =
+                   Rigid3d(r.Quat("rotation", qtol), r.Vec3("translation"));
+               out->rows.push_back(e);
+             });
+  state->Add(kLog, &logs_,
+             [](const RecordReader& r, TableRows<NuscenesLog>* out) {
+               NuscenesLog l;
+               l.token = r.token();
+               l.logfile = r.OptionalString("logfile");
+               l.vehicle = r.OptionalString("vehicle");
+               l.date_captured = r.OptionalString("date_captured");
+               l.location = r.OptionalString("location");
+               out->rows.push_back(std::move(l));
+             });
+  state->Add(
+      kMap, &maps_,
+      [](const RecordReader& r, TableRows<NuscenesMap>* out) {
+        NuscenesMap m;
+        m.token = r.token();
+        m.category = r.OptionalString("category");
+        m.filename = r.RelativePath("filename");
+        Tokens logs = r.RefList("log_tokens");
+        out->lists.push_back(std::move(logs));
+        out->rows.push_back(std::move(m));
+      },
+      0, &state->map_logs);
 }
 
 // Scenes, samples, sample_data and annotations.
-size_t Nuscenes::LoadCaptureTables(LoadState* state) {
+void Nuscenes::AddCaptureTables(LoadState* state) {
   const double qtol = options_.quaternion_norm_tol;
-  size_t bytes = 0;
-  {
-    PendingRefs& p = state->Refs(kScene, 3);
-    bytes += state->Parse(kScene, [&](const RecordReader& r) {
-      NuscenesScene s;
-      s.token = r.token();
-      s.name = r.String("name");
-      s.description = r.OptionalString("description");
-      s.nbr_samples = static_cast<int>(r.OptionalInt("nbr_samples", 0));
-      p.tokens.push_back(r.Ref("log_token"));
-      p.tokens.push_back(r.Ref("first_sample_token"));
-      p.tokens.push_back(r.Ref("last_sample_token"));
-      scenes_.push_back(std::move(s));
-    });
-  }
-  {
-    PendingRefs& p = state->Refs(kSample, 3);
-    bytes += state->Parse(kSample, [&](const RecordReader& r) {
-      NuscenesSample s;
-      s.token = r.token();
-      s.timestamp = r.Int("timestamp");
-      p.tokens.push_back(r.Ref("scene_token"));
-      p.tokens.push_back(r.Ref("prev"));
-      p.tokens.push_back(r.Ref("next"));
-      samples_.push_back(std::move(s));
-    });
-  }
-  {
-    PendingRefs& p = state->Refs(kSampleData, 5);
-    sample_data_.reserve(1 << 16);
-    bytes += state->Parse(kSampleData, [&](const RecordReader& r) {
-      NuscenesSampleData d;
-      d.token = r.token();
-      d.timestamp = r.Int("timestamp");
-      d.width = static_cast<int32_t>(r.OptionalInt("width", 0));
-      d.height = static_cast<int32_t>(r.OptionalInt("height", 0));
-      if (d.width < 0 || d.height < 0 || d.width > 65536 || d.height > 65536) {
-        r.Error("invalid image size ", d.width, "x", d.height);
-      }
-      d.is_key_frame = r.Bool("is_key_frame");
-      d.fileformat = r.OptionalString("fileformat");
-      d.filename = r.RelativePath("filename");
-      p.tokens.push_back(r.Ref("sample_token"));
-      p.tokens.push_back(r.Ref("ego_pose_token"));
-      p.tokens.push_back(r.Ref("calibrated_sensor_token"));
-      p.tokens.push_back(r.Ref("prev"));
-      p.tokens.push_back(r.Ref("next"));
-      sample_data_.push_back(std::move(d));
-    });
-  }
-  {
-    PendingRefs& p = state->Refs(kSampleAnnotation, 5);
-    bytes += state->Parse(kSampleAnnotation, [&](const RecordReader& r) {
-      NuscenesSampleAnnotation a;
-      a.token = r.token();
-      a.translation = r.Vec3("translation");
-      a.size = r.Vec3("size");
-      if (a.size.minCoeff() < 0) r.Error("negative box size");
-      a.rotation = r.Quat("rotation", qtol);
-      a.num_lidar_pts = static_cast<int>(r.OptionalInt("num_lidar_pts", 0));
-      a.num_radar_pts = static_cast<int>(r.OptionalInt("num_radar_pts", 0));
-      p.tokens.push_back(r.Ref("sample_token"));
-      p.tokens.push_back(r.Ref("instance_token"));
-      p.tokens.push_back(r.Ref("visibility_token"));
-      p.tokens.push_back(r.Ref("prev"));
-      p.tokens.push_back(r.Ref("next"));
-      state->ann_attributes.push_back(r.RefList("attribute_tokens"));
-      sample_annotations_.push_back(std::move(a));
-    });
-  }
-  return bytes;
+  state->Add(
+      kScene, &scenes_,
+      [](const RecordReader& r, TableRows<NuscenesScene>* out) {
+        NuscenesScene s;
+        s.token = r.token();
+        s.name = r.String("name");
+        s.description = r.OptionalString("description");
+        s.nbr_samples = static_cast<int>(r.OptionalInt("nbr_samples", 0));
+        out->refs.push_back(r.Ref("log_token"));
+        out->refs.push_back(r.Ref("first_sample_token"));
+        out->refs.push_back(r.Ref("last_sample_token"));
+        out->rows.push_back(std::move(s));
+      },
+      3);
+  state->Add(
+      kSample, &samples_,
+      [](const RecordReader& r, TableRows<NuscenesSample>* out) {
+        NuscenesSample s;
+        s.token = r.token();
+        s.timestamp = r.Int("timestamp");
+        out->refs.push_back(r.Ref("scene_token"));
+        out->refs.push_back(r.Ref("prev"));
+        out->refs.push_back(r.Ref("next"));
+        out->rows.push_back(std::move(s));
+      },
+      3);
+  state->Add(
+      kSampleData, &sample_data_,
+      [](const RecordReader& r, TableRows<NuscenesSampleData>* out) {
+        NuscenesSampleData d;
+        d.token = r.token();
+        d.timestamp = r.Int("timestamp");
+        d.width = static_cast<int32_t>(r.OptionalInt("width", 0));
+        d.height = static_cast<int32_t>(r.OptionalInt("height", 0));
+        if (d.width < 0 || d.height < 0 || d.width > 65536 ||
+            d.height > 65536) {
+          r.Error("invalid image size ", d.width, "x", d.height);
+        }
+        d.is_key_frame = r.Bool("is_key_frame");
+        d.fileformat = r.OptionalString("fileformat");
+        d.filename = r.RelativePath("filename");
+        out->refs.push_back(r.Ref("sample_token"));
+        out->refs.push_back(r.Ref("ego_pose_token"));
+        out->refs.push_back(r.Ref("calibrated_sensor_token"));
+        out->refs.push_back(r.Ref("prev"));
+        out->refs.push_back(r.Ref("next"));
+        out->rows.push_back(std::move(d));
+      },
+      5);
+  state->Add(
+      kSampleAnnotation, &sample_annotations_,
+      [qtol](const RecordReader& r, TableRows<NuscenesSampleAnnotation>* out) {
+        NuscenesSampleAnnotation a;
+        a.token = r.token();
+        a.translation = r.Vec3("translation");
+        a.size = r.Vec3("size");
+        if (a.size.minCoeff() < 0) r.Error("negative box size");
+        a.rotation = r.Quat("rotation", qtol);
+        a.num_lidar_pts = static_cast<int>(r.OptionalInt("num_lidar_pts", 0));
+        a.num_radar_pts = static_cast<int>(r.OptionalInt("num_radar_pts", 0));
+        out->refs.push_back(r.Ref("sample_token"));
+        out->refs.push_back(r.Ref("instance_token"));
+        out->refs.push_back(r.Ref("visibility_token"));
+        out->refs.push_back(r.Ref("prev"));
+        out->refs.push_back(r.Ref("next"));
+        out->lists.push_back(r.RefList("attribute_tokens"));
+        out->rows.push_back(std::move(a));
+      },
+      5, &state->ann_attributes);
 }
 
 // Open-addressing token -> row index of every table (duplicate tokens are an
 // error naming the table).
 void Nuscenes::BuildTokenIndices(const LoadState* state) {
-  // Token indices.
-  auto build = [&](int table, size_t n, auto token_of) {
-    TokenIndex& index = index_[table];
-    size_t cap = 16;
-    while (cap < 2 * n) cap <<= 1;
-    index.slots.assign(cap, kNoIndex);
-    index.mask = cap - 1;
-    for (size_t i = 0; i < n; ++i) {
-      const NuscenesToken& t = token_of(static_cast<int32_t>(i));
-      uint64_t h = HashToken(t) & index.mask;
-      while (index.slots[h] != kNoIndex) {
-        if (token_of(index.slots[h]) == t) {
-          ThrowInputError(state->paths[table], "record ", t.ToString(),
-                          ": duplicate token");
-        }
-        h = (h + 1) & index.mask;
-      }
-      index.slots[h] = static_cast<int32_t>(i);
+  // One table per thread; the first table (in table order) with a duplicate
+  // throws, as a serial pass would.
+  std::exception_ptr errors[kNumTables];
+  const int threads =
+      options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int table = 0; table < kNumTables; ++table) {
+    try {
+      BuildTokenIndex(table, state->paths[table]);
+    } catch (...) {
+      errors[table] = std::current_exception();
     }
-  };
-#define GEODRIVE_BUILD_INDEX(table, rows) \
-  build(table, rows.size(),               \
-        [&](int32_t i) -> const NuscenesToken& { return rows[i].token; })
-  GEODRIVE_BUILD_INDEX(kCategory, categories_);
-  GEODRIVE_BUILD_INDEX(kAttribute, attributes_);
-  GEODRIVE_BUILD_INDEX(kVisibility, visibilities_);
-  GEODRIVE_BUILD_INDEX(kInstance, instances_);
-  GEODRIVE_BUILD_INDEX(kSensor, sensors_);
-  GEODRIVE_BUILD_INDEX(kCalibratedSensor, calibrated_sensors_);
-  GEODRIVE_BUILD_INDEX(kEgoPose, ego_poses_);
-  GEODRIVE_BUILD_INDEX(kLog, logs_);
-  GEODRIVE_BUILD_INDEX(kScene, scenes_);
-  GEODRIVE_BUILD_INDEX(kSample, samples_);
-  GEODRIVE_BUILD_INDEX(kSampleData, sample_data_);
-  GEODRIVE_BUILD_INDEX(kSampleAnnotation, sample_annotations_);
-  GEODRIVE_BUILD_INDEX(kMap, maps_);
-#undef GEODRIVE_BUILD_INDEX
+  }
+  for (const auto& error : errors) {
+    if (error) std::rethrow_exception(error);
+  }
+}
+
+void Nuscenes::BuildTokenIndex(int table, const std::string& path) {
+  const size_t n = TableRowCount(table);
+  TokenIndex& index = index_[table];
+  size_t cap = 16;
+  while (cap < 2 * n) cap <<= 1;
+  index.slots.assign(cap, kNoIndex);
+  index.mask = cap - 1;
+  constexpr size_t kAhead = 16;  // slots are random accesses: prefetch them
+  for (size_t i = 0; i < n; ++i) {
+    if (i + kAhead < n) {
+      const NuscenesToken& ahead =
+          RowToken(table, static_cast<int32_t>(i + kAhead));
+      __builtin_prefetch(&index.slots[HashToken(ahead) & index.mask]);
+    }
+    const NuscenesToken& t = RowToken(table, static_cast<int32_t>(i));
+    uint64_t h = HashToken(t) & index.mask;
+    while (index.slots[h] != kNoIndex) {
+      if (RowToken(table, index.slots[h]) == t) {
+        ThrowInputError(path, "record ", t.ToString(), ": duplicate token");
+      }
+      h = (h + 1) & index.mask;
+    }
+    index.slots[h] = static_cast<int32_t>(i);
+  }
+}
+
+size_t Nuscenes::TableRowCount(int table) const {
+  switch (table) {
+    case kCategory:
+      return categories_.size();
+    case kAttribute:
+      return attributes_.size();
+    case kVisibility:
+      return visibilities_.size();
+    case kInstance:
+      return instances_.size();
+    case kSensor:
+      return sensors_.size();
+    case kCalibratedSensor:
+      return calibrated_sensors_.size();
+    case kEgoPose:
+      return ego_poses_.size();
+    case kLog:
+      return logs_.size();
+    case kScene:
+      return scenes_.size();
+    case kSample:
+      return samples_.size();
+    case kSampleData:
+      return sample_data_.size();
+    case kSampleAnnotation:
+      return sample_annotations_.size();
+    default:
+      return maps_.size();
+  }
+}
+
+const NuscenesToken& Nuscenes::RowToken(int table, int32_t i) const {
+  switch (table) {
+    case kCategory:
+      return categories_[i].token;
+    case kAttribute:
+      return attributes_[i].token;
+    case kVisibility:
+      return visibilities_[i].token;
+    case kInstance:
+      return instances_[i].token;
+    case kSensor:
+      return sensors_[i].token;
+    case kCalibratedSensor:
+      return calibrated_sensors_[i].token;
+    case kEgoPose:
+      return ego_poses_[i].token;
+    case kLog:
+      return logs_[i].token;
+    case kScene:
+      return scenes_[i].token;
+    case kSample:
+      return samples_[i].token;
+    case kSampleData:
+      return sample_data_[i].token;
+    case kSampleAnnotation:
+      return sample_annotations_[i].token;
+    default:
+      return maps_[i].token;
+  }
 }
 
 void Nuscenes::Resolve(LoadState* state) {
@@ -966,7 +1047,7 @@ void Nuscenes::Resolve(LoadState* state) {
       }
       return kNoIndex;
     }
-    const int32_t i = Find(kTableNames[target], ref);
+    const int32_t i = FindRow(target, ref);
     if (i == kNoIndex) {
       ThrowInputError(state->paths[table], "record ", self.ToString(), ": ",
                       field, " ", ref.ToString(), " does not resolve in ",
@@ -1017,20 +1098,26 @@ void Nuscenes::Resolve(LoadState* state) {
     }
   }
   const size_t num_sensors = sensors_.size();
+  const int threads = options_.num_threads;
   {
     const auto& p = state->refs[kSample].tokens;
-    for (size_t i = 0; i < samples_.size(); ++i) {
+    const int targets[] = {kScene, kSample, kSample};
+    ForEachRow(samples_.size(), threads, [&](size_t i) {
+      PrefetchRefs(p, targets, 3, i);
       auto& s = samples_[i];
       s.scene =
           resolve(kSample, s.token, "scene_token", kScene, p[3 * i], true);
       s.prev = resolve(kSample, s.token, "prev", kSample, p[3 * i + 1], false);
       s.next = resolve(kSample, s.token, "next", kSample, p[3 * i + 2], false);
       s.data.assign(num_sensors, kNoIndex);
-    }
+    });
   }
   {
     auto& p = state->refs[kSampleData].tokens;
-    for (size_t i = 0; i < sample_data_.size(); ++i) {
+    const int targets[] = {kSample, kEgoPose, kCalibratedSensor, kSampleData,
+                           kSampleData};
+    ForEachRow(sample_data_.size(), threads, [&](size_t i) {
+      PrefetchRefs(p, targets, 5, i);
       auto& d = sample_data_[i];
       d.sample = resolve(kSampleData, d.token, "sample_token", kSample,
                          p[5 * i], true);
@@ -1044,14 +1131,20 @@ void Nuscenes::Resolve(LoadState* state) {
       d.next = resolve(kSampleData, d.token, "next", kSampleData, p[5 * i + 4],
                        false);
       d.sensor = calibrated_sensors_[d.calibrated_sensor].sensor;
+    });
+    std::vector<NuscenesToken>().swap(p);
+    for (size_t i = 0; i < sample_data_.size(); ++i) {
+      const auto& d = sample_data_[i];
       if (d.is_key_frame)
         samples_[d.sample].data[d.sensor] = static_cast<int32_t>(i);
     }
-    std::vector<NuscenesToken>().swap(p);
   }
   {
     auto& p = state->refs[kSampleAnnotation].tokens;
-    for (size_t i = 0; i < sample_annotations_.size(); ++i) {
+    const int targets[] = {kSample, kInstance, kVisibility, kSampleAnnotation,
+                           kSampleAnnotation};
+    ForEachRow(sample_annotations_.size(), threads, [&](size_t i) {
+      PrefetchRefs(p, targets, 5, i);
       auto& a = sample_annotations_[i];
       a.sample = resolve(kSampleAnnotation, a.token, "sample_token", kSample,
                          p[5 * i], true);
@@ -1069,7 +1162,10 @@ void Nuscenes::Resolve(LoadState* state) {
         if (at != kNoIndex) a.attributes.push_back(at);
       }
       a.category = instances_[a.instance].category;
-      samples_[a.sample].anns.push_back(static_cast<int32_t>(i));
+    });
+    for (size_t i = 0; i < sample_annotations_.size(); ++i) {
+      samples_[sample_annotations_[i].sample].anns.push_back(
+          static_cast<int32_t>(i));
     }
   }
 }
@@ -1078,41 +1174,40 @@ int32_t Nuscenes::Find(const std::string& table,
                        const NuscenesToken& token) const {
   const int t = TableFromName(table);
   GEODRIVE_CHECK_INPUT(t >= 0, "nuScenes: unknown table '", table, "'");
+  return FindRow(t, token);
+}
+
+void Nuscenes::PrefetchRefs(const std::vector<NuscenesToken>& refs,
+                            const int* targets,
+                            int per_row,
+                            size_t row) const {
+  // Two steps ahead: the index slot of row + 16's references, then the
+  // target row's token of row + 8's (its slot was fetched 8 rows ago).
+  constexpr size_t kSlotAhead = 16, kRowAhead = 8;
+  const size_t rows = refs.size() / per_row;
+  for (int k = 0; k < per_row; ++k) {
+    const TokenIndex& index = index_[targets[k]];
+    if (index.slots.empty()) continue;
+    if (row + kSlotAhead < rows) {
+      const NuscenesToken& t = refs[(row + kSlotAhead) * per_row + k];
+      if (!t.empty())
+        __builtin_prefetch(&index.slots[HashToken(t) & index.mask]);
+    }
+    if (row + kRowAhead < rows) {
+      const NuscenesToken& t = refs[(row + kRowAhead) * per_row + k];
+      if (t.empty()) continue;
+      const int32_t slot = index.slots[HashToken(t) & index.mask];
+      if (slot != kNoIndex) __builtin_prefetch(&RowToken(targets[k], slot));
+    }
+  }
+}
+
+int32_t Nuscenes::FindRow(int t, const NuscenesToken& token) const {
   const TokenIndex& index = index_[t];
   if (index.slots.empty() || token.empty()) return kNoIndex;
-  auto token_of = [&](int32_t i) -> const NuscenesToken& {
-    switch (t) {
-      case kCategory:
-        return categories_[i].token;
-      case kAttribute:
-        return attributes_[i].token;
-      case kVisibility:
-        return visibilities_[i].token;
-      case kInstance:
-        return instances_[i].token;
-      case kSensor:
-        return sensors_[i].token;
-      case kCalibratedSensor:
-        return calibrated_sensors_[i].token;
-      case kEgoPose:
-        return ego_poses_[i].token;
-      case kLog:
-        return logs_[i].token;
-      case kScene:
-        return scenes_[i].token;
-      case kSample:
-        return samples_[i].token;
-      case kSampleData:
-        return sample_data_[i].token;
-      case kSampleAnnotation:
-        return sample_annotations_[i].token;
-      default:
-        return maps_[i].token;
-    }
-  };
   uint64_t h = HashToken(token) & index.mask;
   while (index.slots[h] != kNoIndex) {
-    if (token_of(index.slots[h]) == token) return index.slots[h];
+    if (RowToken(t, index.slots[h]) == token) return index.slots[h];
     h = (h + 1) & index.mask;
   }
   return kNoIndex;

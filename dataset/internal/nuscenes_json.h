@@ -1,0 +1,177 @@
+#pragma once
+// Internal to dataset/nuscenes.cc: the two JSON front ends of the nuScenes
+// table reader and the flat record they both fill.
+//
+// A nuScenes table is one top-level JSON array of flat objects. Both front
+// ends turn each object into a JsonRecord (fields in file order, values
+// classified as null / bool / number / string / array / other) and hand it to
+// a RecordSink; the sink (Nuscenes' RecordReader) owns every check and every
+// error message about fields, so the two front ends cannot disagree on them.
+//
+//  - The reference front end (nuscenes_json_sax.cc) streams a file through
+//    nlohmann's SAX parser. It is the behaviour of record: it accepts exactly
+//    what the reader has always accepted and its errors are the reader's JSON
+//    errors ("malformed JSON at byte N (in record T): ...").
+//  - The fast front end (nuscenes_json_simd.cc) cuts a file into slices of
+//    whole records (TableSlicer) and parses each slice with simdjson's On
+//    Demand API (SliceParser), several slices at a time on different threads.
+//    It only handles input it can mirror exactly; on anything else (bad JSON,
+//    a top-level value that is not an array of objects, numbers simdjson
+//    rejects, a record boundary it cannot find) it reports failure and the
+//    caller re-parses that table with the reference front end, which then
+//    gives the reader's usual error (or, for input only nlohmann accepts, the
+//    usual records). Why slices: see nuscenes_json_simd.cc.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace geodrive {
+namespace nuscenes_json {
+
+// One field of a record: its key and its value, classified.
+struct JsonField {
+  enum Kind { kNull, kBool, kNumber, kString, kArray, kOther };
+  std::string key;
+  Kind kind = kNull;
+  bool boolean = false;
+  double number = 0;
+  int64_t integer = 0;
+  bool is_integer = false;  // the number is an integer in the int64 range
+  std::string str;
+  std::vector<double> numbers;  // array elements (flattened for nested arrays)
+  std::vector<std::string> strings;  // array string elements (top level only)
+  std::vector<int> row_sizes;   // arrays of arrays: the size of each inner one
+  bool array_of_other = false;  // the array holds something else (objects,
+                                // bools, nulls, strings in inner arrays, ...)
+
+  // Resets everything but the key (buffers keep their capacity).
+  void ResetValue();
+};
+
+// One flat record: fields in file order (keys may repeat; Find returns the
+// first). A front end calls Clear(), Add() per field, then Finish() before
+// handing the record on.
+class JsonRecord {
+ public:
+  // The first field named `key`, or nullptr. `key` must be a string literal
+  // (or outlive the record unchanged): Find remembers answers by its address.
+  const JsonField* Find(const char* key) const;
+  // Appends a field named `key` (reusing the storage of an earlier record's
+  // field) and returns it with its value reset.
+  JsonField* Add(const char* key, size_t key_size);
+  void Clear();
+  void Finish();
+  size_t size() const { return size_; }
+  const JsonField& field(size_t i) const { return fields_[i]; }
+
+ private:
+  std::vector<JsonField> fields_;
+  size_t size_ = 0, previous_size_ = 0;
+  // Find's memo. Records of one table nearly always have the same keys in the
+  // same order, so Find(key) nearly always has the previous record's answer.
+  // layout_ changes whenever the key sequence differs from the previous
+  // record's; the i-th Find of a finished record checks the i-th memo entry
+  // (same key address, same layout) before scanning the fields.
+  uint64_t layout_ = 1;
+  bool layout_changed_ = false, finished_ = false;
+  struct Memo {
+    const char* key = nullptr;
+    uint64_t layout = 0;
+    int index = -1;  // -1: absent
+  };
+  mutable std::vector<Memo> memo_;
+  mutable size_t memo_next_ = 0;
+};
+
+class RecordSink {
+ public:
+  virtual ~RecordSink() = default;
+  virtual void OnRecord(const JsonRecord& record) = 0;
+};
+
+// The reference front end: streams one table file through `sink`; returns its
+// size in bytes. Throws InputError naming the file (missing, a directory,
+// unreadable, malformed JSON, not an array of records).
+size_t ParseTableFileSax(const std::string& path, RecordSink* sink);
+
+// ---- The fast front end.
+
+// One slice of a table: a JSON document "[" + whole records + "]" in a
+// buffer padded for simdjson.
+struct Slice {
+  std::vector<char> buffer;  // the padded storage
+  size_t begin = 0;          // the document is buffer[begin, begin + size)
+  size_t size = 0;
+  size_t index = 0;  // 0, 1, ... in file order
+};
+
+// Cuts a table file into slices of whole records of about `slice_bytes`
+// each, read with pread into the caller's buffer: the file is never in memory
+// as a whole. Next() is thread-safe; slices come out in file order. A slice
+// boundary is a "}" , "{" sequence between records; one found inside a string
+// or a nested value makes simdjson reject the slice (and so the table falls
+// back to the reference front end), never gives wrong records.
+class TableSlicer {
+ public:
+  TableSlicer(const std::string& path, size_t slice_bytes);
+  ~TableSlicer();
+  TableSlicer(const TableSlicer&) = delete;
+  TableSlicer& operator=(const TableSlicer&) = delete;
+
+  // Fills `slice` with the next slice. False when the file is done or when it
+  // cannot be sliced (then failed() is true: re-parse with the reference
+  // front end).
+  bool Next(Slice* slice);
+  bool failed() const;
+  // The file size (0 if it could not be opened).
+  size_t file_bytes() const { return file_bytes_; }
+
+ private:
+  bool ReadHeader(std::vector<char>* buffer);
+  bool Fail();
+
+  mutable std::mutex mutex_;
+  int fd_ = -1;
+  size_t file_bytes_ = 0;
+  size_t slice_bytes_;
+  size_t offset_ = 0;  // file offset of the next record's "{"
+  size_t next_index_ = 0;
+  bool started_ = false, done_ = false, failed_ = false;
+};
+
+// Parses slices with simdjson On Demand; one per thread (it owns simdjson's
+// parser and its buffers).
+class SliceParser {
+ public:
+  SliceParser();
+  ~SliceParser();
+  SliceParser(const SliceParser&) = delete;
+  SliceParser& operator=(const SliceParser&) = delete;
+
+  // Calls sink->OnRecord for each record of the slice, in order; exceptions
+  // of the sink pass through. Returns false if simdjson rejects the slice or
+  // it holds something this front end does not mirror exactly (then
+  // re-parse the table with the reference front end).
+  bool Parse(const Slice& slice, RecordSink* sink);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Testing hooks (process-wide): disable the fast front end (every table goes
+// through the reference one), set the slice size (default 1 MiB), and count
+// the tables that fell back to the reference front end.
+void SetFastFrontEndEnabled(bool enabled);
+bool FastFrontEndEnabled();
+void SetSliceBytes(size_t bytes);
+size_t SliceBytes();
+void CountFallback();
+size_t FallbackCount();
+
+}  // namespace nuscenes_json
+}  // namespace geodrive

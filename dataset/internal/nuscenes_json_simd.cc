@@ -1,0 +1,415 @@
+// The fast JSON front end of the nuScenes table reader: simdjson On Demand
+// (Debian's libsimdjson-dev) over slices of whole records. See
+// nuscenes_json.h for how it pairs with the reference (nlohmann SAX) front
+// end.
+//
+// Why slices. simdjson parses a document that is wholly in memory, padded,
+// and its structural index costs 4 bytes per structural character of the
+// document on top. A v1.0-trainval sample_data.json is 1.29 GB: loading it
+// padded (padded_string::load) is 1.29 GB of RSS before a single row exists,
+// and the index would be gigabytes more; mmap does not help (touched pages of
+// a mapping count in RSS too, and the index is the same). simdjson 3.0's
+// document streams (iterate_many) take concatenated documents, not the
+// elements of one big array (comma-separated streams came in 3.1). So the
+// table is cut into slices of about 1 MiB: TableSlicer reads the next bytes
+// with pread, finds the last boundary between two records ("}" , "{" with
+// only whitespace around the comma) and hands out "[" + those records + "]";
+// the next slice starts at the "{" after the boundary. Memory is one slice
+// buffer plus simdjson's buffers per thread (a few MiB), and slices of one
+// table parse on several threads at once, so one big table no longer bounds
+// the load time.
+//
+// Why a slice cannot give wrong records. The first slice starts after the
+// file's "[", every later one at the "{" after a boundary; by induction a
+// slice starts outside any string at the top level. A "boundary" found
+// inside a string leaves the slice with an unterminated string, and one found
+// inside a nested value leaves it with unbalanced brackets; simdjson rejects
+// both, the slicer and parser report failure, and the table is re-parsed by
+// the reference front end. The parser also checks that the top-level array
+// of the slice ends exactly where the slice ends (raw_json), iterates every
+// value (On Demand only checks what it visits), and treats any top-level
+// element that is not an object, and any number simdjson will not parse
+// (beyond 64-bit integers, out-of-range doubles), as "not mine": the
+// reference front end decides those.
+//
+// Portability: the On Demand code here is compiled with the project's flags
+// (no -mavx2), which makes simdjson's compile-time "builtin" kernel the
+// portable one for the tree walk and number parsing; the two costly steps --
+// the structural index (stage 1) and string unescaping -- go through the
+// runtime-dispatched kernels of libsimdjson (haswell / icelake here). A
+// -march=haswell build of the walk measured no faster on sample_data.json.
+
+#include <fcntl.h>
+#include <simdjson.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include "dataset/internal/nuscenes_json.h"
+
+namespace geodrive {
+namespace nuscenes_json {
+namespace {
+
+namespace od = simdjson::ondemand;
+
+constexpr size_t kPadding = simdjson::SIMDJSON_PADDING;
+// Nesting deeper than this is left to the reference front end (and bounds the
+// recursion of Skip).
+constexpr size_t kMaxDepth = 64;
+
+bool IsSpace(char c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; }
+
+// pread of exactly n bytes at `offset`.
+bool ReadAt(int fd, char* out, size_t n, size_t offset) {
+  while (n > 0) {
+    const ssize_t got = pread(fd, out, n, static_cast<off_t>(offset));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) return false;
+    out += got;
+    n -= static_cast<size_t>(got);
+    offset += static_cast<size_t>(got);
+  }
+  return true;
+}
+
+// The last record boundary in data[0, n): a "}" then whitespace, ",",
+// whitespace and the "{" of the next record. Sets *end to one past the "}"
+// and *next to the "{".
+bool FindBoundary(const char* data, size_t n, size_t* end, size_t* next) {
+  size_t limit = n;
+  while (limit > 0) {
+    const void* hit = memrchr(data, '{', limit);
+    if (!hit) return false;
+    const size_t open =
+        static_cast<size_t>(static_cast<const char*>(hit) - data);
+    limit = open;
+    size_t p = open;
+    while (p > 0 && IsSpace(data[p - 1])) --p;
+    if (p == 0 || data[p - 1] != ',') continue;
+    --p;
+    while (p > 0 && IsSpace(data[p - 1])) --p;
+    if (p == 0 || data[p - 1] != '}') continue;
+    *end = p;
+    *next = open;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// TableSlicer.
+
+TableSlicer::TableSlicer(const std::string& path, size_t slice_bytes)
+    : slice_bytes_(std::max<size_t>(slice_bytes, 64)) {
+  fd_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  struct stat st {};
+  if (fd_ < 0 || fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
+    failed_ = true;
+    return;
+  }
+  file_bytes_ = static_cast<size_t>(st.st_size);
+}
+
+TableSlicer::~TableSlicer() {
+  if (fd_ >= 0) close(fd_);
+}
+
+bool TableSlicer::failed() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return failed_;
+}
+
+bool TableSlicer::Fail() {
+  failed_ = true;
+  return false;
+}
+
+// Whitespace, "[", whitespace, then the first record's "{" (offset_ is set to
+// it) or "]" and whitespace to the end (an empty table: done_).
+bool TableSlicer::ReadHeader(std::vector<char>* buffer) {
+  const size_t n = std::min<size_t>(file_bytes_, 4096);
+  buffer->resize(n);
+  if (!ReadAt(fd_, buffer->data(), n, 0)) return false;
+  const char* d = buffer->data();
+  size_t p = 0;
+  while (p < n && IsSpace(d[p])) ++p;
+  if (p == n || d[p] != '[') return false;
+  ++p;
+  while (p < n && IsSpace(d[p])) ++p;
+  if (p < n && d[p] == '{') {
+    offset_ = p;
+    return true;
+  }
+  if (p == n || d[p] != ']' || n != file_bytes_) return false;
+  for (++p; p < n; ++p) {
+    if (!IsSpace(d[p])) return false;
+  }
+  done_ = true;
+  return true;
+}
+
+bool TableSlicer::Next(Slice* slice) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  slice->index = next_index_;
+  if (done_ || failed_) return false;
+  std::vector<char>& buffer = slice->buffer;
+  if (!started_) {
+    started_ = true;
+    if (!ReadHeader(&buffer)) return Fail();
+    if (done_) return false;
+  }
+  // buffer[0] = "[", the records from offset_, then "]" over the byte after
+  // the last record's "}"; a record longer than the slice doubles the read.
+  for (size_t want = slice_bytes_;; want *= 2) {
+    const size_t n = std::min(want, file_bytes_ - offset_);
+    if (buffer.size() < n + 2 + kPadding) buffer.resize(n + 2 + kPadding);
+    if (!ReadAt(fd_, buffer.data() + 1, n, offset_)) return Fail();
+    buffer[0] = '[';
+    const char* data = buffer.data() + 1;
+    if (offset_ + n == file_bytes_) {
+      // The last slice keeps the file's own "]"; only whitespace may follow.
+      size_t end = n;
+      while (end > 0 && IsSpace(data[end - 1])) --end;
+      if (end == 0 || data[end - 1] != ']') return Fail();
+      slice->begin = 0;
+      slice->size = end + 1;
+      done_ = true;
+      break;
+    }
+    size_t end = 0, next = 0;
+    if (FindBoundary(data, n, &end, &next)) {
+      buffer[1 + end] = ']';
+      slice->begin = 0;
+      slice->size = end + 2;
+      offset_ += next;
+      break;
+    }
+  }
+  ++next_index_;
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// SliceParser.
+
+struct SliceParser::Impl {
+  od::parser parser;
+  JsonRecord record;
+
+  // A number as nlohmann's SAX reports it: an integer in the int64 range
+  // (is_integer), an unsigned integer above it, or a double.
+  static bool ReadNumber(od::value value,
+                         double* number,
+                         int64_t* integer,
+                         bool* is_integer) {
+    od::number n;
+    if (value.get_number().get(n)) return false;
+    switch (n.get_number_type()) {
+      case od::number_type::signed_integer:
+        *integer = n.get_int64();
+        *number = static_cast<double>(*integer);
+        *is_integer = true;
+        return true;
+      case od::number_type::unsigned_integer:  // > INT64_MAX
+        *integer = static_cast<int64_t>(n.get_uint64());
+        *number = static_cast<double>(n.get_uint64());
+        *is_integer = false;
+        return true;
+      default:
+        *integer = 0;
+        *number = n.get_double();
+        *is_integer = false;
+        return true;
+    }
+  }
+
+  // Visits (and so validates) a value whose content the record does not keep.
+  static bool Skip(od::value value) {
+    od::json_type type;
+    if (value.type().get(type)) return false;
+    switch (type) {
+      case od::json_type::object: {
+        od::object object;
+        if (value.get_object().get(object)) return false;
+        for (auto field : object) {
+          std::string_view key;
+          if (field.error() || field.unescaped_key().get(key)) return false;
+          if (!Skip(field.value())) return false;
+        }
+        return true;
+      }
+      case od::json_type::array: {
+        od::array array;
+        if (value.get_array().get(array)) return false;
+        for (auto element : array) {
+          od::value v;
+          if (element.get(v) || !Skip(v)) return false;
+        }
+        return true;
+      }
+      case od::json_type::string: {
+        std::string_view s;
+        return !value.get_string().get(s);
+      }
+      case od::json_type::number: {
+        double d;
+        int64_t i;
+        bool is_integer;
+        return ReadNumber(value, &d, &i, &is_integer);
+      }
+      case od::json_type::boolean: {
+        bool b;
+        return !value.get_bool().get(b);
+      }
+      case od::json_type::null: {
+        bool is_null = false;
+        return !value.is_null().get(is_null) && is_null;
+      }
+    }
+    return false;
+  }
+
+  // An array inside an inner array: numbers are kept (flattened, counted in
+  // row_sizes), anything else marks the field array_of_other.
+  static bool ReadInnerArray(od::value value, JsonField* f) {
+    od::array array;
+    if (value.get_array().get(array)) return false;
+    f->row_sizes.push_back(0);
+    for (auto element : array) {
+      od::value v;
+      od::json_type type;
+      if (element.get(v) || v.type().get(type)) return false;
+      if (type == od::json_type::number) {
+        double d;
+        int64_t i;
+        bool is_integer;
+        if (!ReadNumber(v, &d, &i, &is_integer)) return false;
+        f->numbers.push_back(d);
+        ++f->row_sizes.back();
+      } else {
+        f->array_of_other = true;
+        if (!Skip(v)) return false;
+      }
+    }
+    return true;
+  }
+
+  // A field's array: numbers and strings are kept, inner arrays go through
+  // ReadInnerArray, anything else marks the field array_of_other.
+  static bool ReadArray(od::value value, JsonField* f) {
+    od::array array;
+    if (value.get_array().get(array)) return false;
+    f->kind = JsonField::kArray;
+    for (auto element : array) {
+      od::value v;
+      od::json_type type;
+      if (element.get(v) || v.type().get(type)) return false;
+      switch (type) {
+        case od::json_type::number: {
+          double d;
+          int64_t i;
+          bool is_integer;
+          if (!ReadNumber(v, &d, &i, &is_integer)) return false;
+          f->numbers.push_back(d);
+          break;
+        }
+        case od::json_type::string: {
+          std::string_view s;
+          if (v.get_string().get(s)) return false;
+          f->strings.emplace_back(s);
+          break;
+        }
+        case od::json_type::array:
+          if (!ReadInnerArray(v, f)) return false;
+          break;
+        default:
+          f->array_of_other = true;
+          if (!Skip(v)) return false;
+      }
+    }
+    return true;
+  }
+
+  static bool ReadValue(od::value value, JsonField* f) {
+    od::json_type type;
+    if (value.type().get(type)) return false;
+    switch (type) {
+      case od::json_type::string: {
+        std::string_view s;
+        if (value.get_string().get(s)) return false;
+        f->kind = JsonField::kString;
+        f->str.assign(s.data(), s.size());
+        return true;
+      }
+      case od::json_type::number:
+        f->kind = JsonField::kNumber;
+        return ReadNumber(value, &f->number, &f->integer, &f->is_integer);
+      case od::json_type::boolean:
+        f->kind = JsonField::kBool;
+        return !value.get_bool().get(f->boolean);
+      case od::json_type::null: {
+        bool is_null = false;
+        f->kind = JsonField::kNull;
+        return !value.is_null().get(is_null) && is_null;
+      }
+      case od::json_type::array:
+        return ReadArray(value, f);
+      case od::json_type::object:
+        f->kind = JsonField::kOther;
+        return Skip(value);
+    }
+    return false;
+  }
+
+  bool ReadRecord(od::object object) {
+    record.Clear();
+    for (auto field : object) {
+      std::string_view key;
+      if (field.error() || field.unescaped_key().get(key)) return false;
+      if (!ReadValue(field.value(), record.Add(key.data(), key.size()))) {
+        return false;
+      }
+    }
+    record.Finish();
+    return true;
+  }
+};
+
+SliceParser::SliceParser() : impl_(std::make_unique<Impl>()) {}
+SliceParser::~SliceParser() = default;
+
+bool SliceParser::Parse(const Slice& slice, RecordSink* sink) {
+  od::parser& parser = impl_->parser;
+  if (parser.capacity() < slice.size || parser.max_depth() != kMaxDepth) {
+    if (parser.allocate(slice.size, kMaxDepth)) return false;
+  }
+  const char* json = slice.buffer.data() + slice.begin;
+  od::document doc;
+  if (parser.iterate(json, slice.size, slice.buffer.size() - slice.begin)
+          .get(doc)) {
+    return false;
+  }
+  // The top-level array must end where the slice ends (On Demand would
+  // otherwise ignore what follows it).
+  std::string_view whole;
+  if (doc.raw_json().get(whole) || whole.size() != slice.size) return false;
+  doc.rewind();
+  od::array records;
+  if (doc.get_array().get(records)) return false;
+  for (auto element : records) {
+    od::object object;
+    if (element.get_object().get(object)) return false;
+    if (!impl_->ReadRecord(object)) return false;
+    sink->OnRecord(impl_->record);
+  }
+  return true;
+}
+
+}  // namespace nuscenes_json
+}  // namespace geodrive
