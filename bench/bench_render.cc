@@ -4,9 +4,19 @@
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_render --benchmark_filter=threads:1
 //
+// With GEODRIVE_BENCH_RENDER_DUMP=<dir> the scene is also written there for
+// other renderers (bench/render_vs_open3d.sh): points.f32 (N x 3 float32,
+// world), colors.u8 (N x 3 RGB), cameras.txt (width height fx fy cx cy, then
+// one line of 16 numbers per frame: the row-major 4x4 cam_from_world).
+//
 // Figures and targets: docs/PERFORMANCE.md, section "Renderer".
 
 #include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <string>
 
 #include "bench/bench_main.h"
 #include "render/renderer.h"
@@ -20,6 +30,30 @@ struct Scene {
   PointCloud cloud;
   std::vector<Rigid3d> cam_from_world;
 };
+
+// Writes the scene for other renderers (see the file comment).
+void DumpScene(const Scene& s, const std::string& dir) {
+  std::ofstream points(dir + "/points.f32", std::ios::binary);
+  for (const Eigen::Vector3f& p : s.cloud.positions)
+    points.write(reinterpret_cast<const char*>(p.data()), 3 * sizeof(float));
+  std::ofstream colors(dir + "/colors.u8", std::ios::binary);
+  for (const Color3u8& c : s.cloud.colors)
+    colors.write(reinterpret_cast<const char*>(c.data()), 3);
+  std::ofstream cams(dir + "/cameras.txt");
+  cams.precision(17);
+  cams << s.camera.width << " " << s.camera.height << " " << s.camera.fx << " "
+       << s.camera.fy << " " << s.camera.cx << " " << s.camera.cy << "\n";
+  for (const Rigid3d& pose : s.cam_from_world) {
+    const Eigen::Matrix4d m = pose.ToMatrix();
+    for (int i = 0; i < 16; ++i)
+      cams << m(i / 4, i % 4) << (i == 15 ? "\n" : " ");
+  }
+  if (!points || !colors || !cams) {
+    std::fprintf(stderr, "bench_render: could not write the scene to %s\n",
+                 dir.c_str());
+    std::exit(2);
+  }
+}
 
 const Scene& GetScene() {
   static const Scene* scene = [] {
@@ -36,6 +70,8 @@ const Scene& GetScene() {
           Eigen::Vector3d(0.02 * f, 0, 0.4 * f));
       s->cam_from_world.push_back(world_from_cam.Inverse());
     }
+    if (const char* dir = std::getenv("GEODRIVE_BENCH_RENDER_DUMP"))
+      DumpScene(*s, dir);
     return s;
   }();
   return *scene;
@@ -75,6 +111,7 @@ BENCHMARK(BM_Render25Frames)
     ->ArgsProduct({{0, 1, 2}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
+    ->MeasureProcessCPUTime()  // CPU time of all threads
     ->MinTime(2.0);
 
 }  // namespace

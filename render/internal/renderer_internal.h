@@ -87,6 +87,7 @@ struct ProjectedBlock {
   alignas(64) float v[kBlock];
   alignas(64) float z[kBlock];
   alignas(64) int32_t ok[kBlock];
+  alignas(64) uint64_t key[kBlock];  // zbuffer radius 0: depth-ordered keys
 };
 
 // Bits of a float; for positive floats they are monotonic in the value.

@@ -1,0 +1,98 @@
+#!/usr/bin/env bash
+# Our z-buffer renderer against Open3D's CPU `project_to_rgbd_image` on the same
+# points and cameras, in one run: bench_render (25 frames at 480x720 from a
+# 345,600-point cloud, docs/PERFORMANCE.md "Renderer") writes its scene
+# (GEODRIVE_BENCH_RENDER_DUMP) and times ours; then Debian's /usr/bin/python3
+# (python3-open3d) renders the same 25 frames with
+# o3d.t.geometry.PointCloud.project_to_rgbd_image (depth_scale 1, depth_max
+# 100), with 1 and with 2 OpenMP threads, and the ratios Open3D / ours at the
+# same thread count are printed. Both sides keep the cloud in memory between
+# repetitions and time only the 25 projections; Open3D also allocates its
+# output images per call, ours reuses them (RenderFramesInto).
+#
+#   bash bench/render_vs_open3d.sh [BUILD_DIR]     (default: build)
+#
+# Environment: REPS (ours: benchmark repetitions, median taken; Open3D: median
+# of REPS timed runs after one warm-up; default 5), MODES (bench_render modes
+# to time, default "0"; 1 = radius 1.5 px, 2 = soft have no Open3D
+# counterpart and are printed for reference), GEODRIVE_BENCH_RENDER_DUMP (scene
+# files; default /tmp/geodrive_bench_render), TASKSET (e.g. "taskset -c 0,1").
+set -euo pipefail
+
+BUILD_DIR=${1:-build}
+BENCH="$BUILD_DIR/bench/bench_render"
+REPS=${REPS:-5}
+MODES=${MODES:-0}
+TASKSET=${TASKSET:-}
+export GEODRIVE_BENCH_RENDER_DUMP=${GEODRIVE_BENCH_RENDER_DUMP:-/tmp/geodrive_bench_render}
+if [[ ! -x "$BENCH" ]]; then
+  echo "no $BENCH: configure with -DGEODRIVE_BUILD_BENCH=ON and build bench_render" >&2
+  exit 2
+fi
+if ! /usr/bin/python3 -c "import open3d" 2>/dev/null; then
+  echo "/usr/bin/python3 has no open3d: apt-get install python3-open3d" >&2
+  exit 2
+fi
+mkdir -p "$GEODRIVE_BENCH_RENDER_DUMP"
+
+echo "== machine"
+lscpu | grep -E "^Model name|^CPU\(s\)" || true
+echo "flags: $(grep -o -w -E 'avx2|avx512f|avx512bw|avx512vl' /proc/cpuinfo | sort -u | tr '\n' ' ')"
+echo "load: $(cut -d' ' -f1-3 /proc/loadavg)"
+
+filter="mode:($(echo "$MODES" | tr ' ' '|'))/"
+echo "== ours ($BENCH, median of $REPS; wall and CPU time of the process)"
+$TASKSET "$BENCH" --benchmark_filter="$filter" --benchmark_min_time=1 \
+  --benchmark_repetitions="$REPS" --benchmark_report_aggregates_only=true \
+  --benchmark_out="$GEODRIVE_BENCH_RENDER_DUMP/ours.json" --benchmark_out_format=json \
+  2>/dev/null | grep -E "_median" || true
+
+echo "== Open3D (median of $REPS), and the ratio Open3D / ours (wall time, same thread count)"
+for threads in 1 2; do
+  OMP_NUM_THREADS=$threads $TASKSET /usr/bin/python3 - "$GEODRIVE_BENCH_RENDER_DUMP" "$REPS" "$threads" <<'EOF'
+import json, os, statistics, sys, time
+import numpy as np
+import open3d as o3d
+
+d, reps, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+ours = {}
+for b in json.load(open(os.path.join(d, 'ours.json')))['benchmarks']:
+    if b.get('aggregate_name') == 'median':
+        ours[b['run_name']] = (b['real_time'], b['cpu_time'], b.get('mean_coverage', 0))
+
+lines = open(os.path.join(d, 'cameras.txt')).read().split('\n')
+w, h, fx, fy, cx, cy = (float(x) for x in lines[0].split())
+w, h = int(w), int(h)
+poses = [np.array([float(x) for x in l.split()]).reshape(4, 4) for l in lines[1:] if l.strip()]
+pts = np.fromfile(os.path.join(d, 'points.f32'), dtype=np.float32).reshape(-1, 3)
+cols = np.fromfile(os.path.join(d, 'colors.u8'), dtype=np.uint8).reshape(-1, 3)
+pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts))
+pcd.point.colors = o3d.core.Tensor(cols.astype(np.float32) / 255.0)
+K = o3d.core.Tensor([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=o3d.core.Dtype.Float64)
+exts = [o3d.core.Tensor(p, dtype=o3d.core.Dtype.Float64) for p in poses]
+
+def run():
+    return [pcd.project_to_rgbd_image(w, h, K, e, depth_scale=1.0, depth_max=100.0) for e in exts]
+
+frames = run()  # warm-up; also the coverage check below
+coverage = np.mean([(np.asarray(f.depth) > 0).mean() for f in frames])
+walls, cpus = [], []
+for _ in range(reps):
+    t, c = time.perf_counter(), time.process_time()
+    run()
+    walls.append(time.perf_counter() - t)
+    cpus.append(time.process_time() - c)
+wall, cpu = statistics.median(walls) * 1e3, statistics.median(cpus) * 1e3
+key = f'BM_Render25Frames/mode:0/threads:{threads}/min_time:2.000/real_time'
+if threads == 1:
+    print(f'open3d {o3d.__version__}, {len(pts)} points, {len(exts)} frames {w}x{h}')
+    print(f'{"threads":<8}{"ours ms (cpu)":>18}{"open3d ms (cpu)":>20}{"open3d/ours":>13}'
+          f'{"coverage ours":>15}{"open3d":>8}')
+if key in ours:
+    ow, oc, ocov = ours[key]
+    print(f'{threads:<8}{ow:>10.1f} ({oc:5.1f}){wall:>12.1f} ({cpu:5.0f}){wall / ow:>12.1f}x'
+          f'{ocov:>15.3f}{coverage:>8.3f}')
+else:
+    print(f'{threads:<8}{"-":>18}{wall:>12.1f} ({cpu:5.0f})')
+EOF
+done
