@@ -13,6 +13,8 @@
 #include "dataset/drive_dataset.h"
 #include "dataset/scene/lidar_sweeps.h"
 #include "dataset/scene_source.h"
+#include "dataset/synthetic/synthetic_dataset.h"
+#include "dataset/synthetic/synthetic_world.h"
 #include "geometry/depth_completion.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
@@ -161,6 +163,75 @@ TEST(LidarDenseReal, CoversTheSupportedAreaOfFrame0) {
     EXPECT_EQ(static_cast<int64_t>(scene.cloud.size()),
               std::llround(r.coverage * 800 * 450));
   }
+}
+
+}  // namespace
+}  // namespace geodrive
+
+namespace geodrive {
+namespace {
+
+// ---- Synthetic world: the completed frame-0 depth against the exact depth
+// ----
+
+TEST(LidarDenseSynthetic, CompletedDepthAgainstTheTrueDepth) {
+  SyntheticDatasetOptions o;
+  o.num_scenes = 1;
+  o.seed = 22;
+  o.image_width = 800;
+  o.image_height = 450;
+  o.scene_duration_s = 3.0;
+  const std::string root = test::MakeTempDir("lidar_dense_synth");
+  WriteSyntheticDataset(o, root);
+  DriveDatasetOptions d;
+  d.root = root;
+  d.version = o.version;
+  const auto dataset = OpenDriveDataset(d);
+  const DriveClip clip = dataset->LoadClip(dataset->ClipIds().front());
+  SceneInputs in;
+  in.clip = &clip;
+  SceneSourceOptions options;
+  options.dense_width = 800;  // the camera's own grid: pixel for pixel
+  const ConditionScene scene = BuildConditionScene("lidar-dense", in, options);
+  ASSERT_TRUE(scene.completion);
+  std::printf("synthetic: %s\n", scene.completion->BriefReport().c_str());
+
+  const SyntheticWorld world(SyntheticWorldOptionsFor(o, 0));
+  const SyntheticTimeline timeline = MakeSyntheticTimeline(o, 0);
+  const DriveFrame& f0 = clip.frames.front();
+  const RenderedView truth = world.RenderCamera(
+      f0.camera, f0.world_from_cam, timeline.Seconds(f0.timestamp_us));
+  // Each point back to its pixel: compare its depth with the truth there,
+  // over static pixels (the source drops the boxes' points).
+  double abs_sum = 0, sq_sum = 0;
+  int64_t n = 0, within_5 = 0;
+  for (const Eigen::Vector3f& p : scene.cloud.positions) {
+    const Eigen::Vector2d uv = scene.camera.Project(p.cast<double>());
+    const int x = static_cast<int>(std::lround(uv.x()));
+    const int y = static_cast<int>(std::lround(uv.y()));
+    ASSERT_TRUE(x >= 0 && y >= 0 && x < 800 && y < 450);
+    if (truth.instance.at<uint16_t>(y, x) != kStaticInstance) continue;
+    const double t = truth.depth.at<float>(y, x);
+    const double e = std::abs(p.z() - t);
+    abs_sum += e;
+    sq_sum += e * e;
+    within_5 += e <= 0.05 * t;
+    ++n;
+  }
+  ASSERT_GT(n, 100000);
+  const double mae = abs_sum / n, rmse = std::sqrt(sq_sum / n);
+  std::printf(
+      "synthetic: %lld static points, MAE %.3f m, RMSE %.3f m, "
+      "within 5 %% %.3f\n",
+      static_cast<long long>(n), mae, rmse, static_cast<double>(within_5) / n);
+  // Measured (seed 22): coverage 0.964 of the supported area, MAE 1.51 m,
+  // RMSE 6.9 m, 0.833 within 5 %: the error sits at depth edges (poles and
+  // building outlines, where the dilations extend the nearer surface by up
+  // to half a kernel) and on far facades between scan lines. Floors with a
+  // margin for other seeds and OpenCV versions:
+  EXPECT_GT(scene.completion->coverage_of_supported, 0.9);
+  EXPECT_LT(mae, 2.0);
+  EXPECT_GT(static_cast<double>(within_5) / n, 0.8);
 }
 
 }  // namespace

@@ -80,8 +80,8 @@ SceneInputs Inputs(const std::string& dir) {
 
 TEST(SceneSource, RegistryListsEverySourceAndRejectsUnknownNames) {
   EXPECT_THAT(SceneSourceNames(),
-              ::testing::ElementsAre("monst3r", "lidar", "image-depth", "cloud",
-                                     "depth-folder"));
+              ::testing::ElementsAre("monst3r", "lidar", "lidar-dense",
+                                     "image-depth", "cloud", "depth-folder"));
   for (const std::string& name : SceneSourceNames())
     EXPECT_NE(CreateSceneSource(name), nullptr) << name;
   try {
@@ -93,6 +93,8 @@ TEST(SceneSource, RegistryListsEverySourceAndRejectsUnknownNames) {
   }
   // The LiDAR source needs a clip; path-based sources need a path.
   EXPECT_THROW(BuildConditionScene("lidar", SceneInputs(), {}), InputError);
+  EXPECT_THROW(BuildConditionScene("lidar-dense", SceneInputs(), {}),
+               InputError);
   EXPECT_THROW(BuildConditionScene("depth-folder", SceneInputs(), {}),
                InputError);
 }
