@@ -1,0 +1,427 @@
+// The two JSON front ends of the nuScenes reader (dataset/internal/
+// nuscenes_json.h) give the same tables and the same errors: the fast one
+// (simdjson over slices, several threads) against the reference one (nlohmann
+// SAX, the reader's behaviour before simdjson) on the synthetic tables, the
+// closed-form fixture, the real scene-0916 extract, and on thousands of
+// corrupted tables. Also the SWAR hex token parser, byte by byte.
+
+#include "dataset/internal/nuscenes_json.h"
+
+#include <gtest/gtest.h>
+
+#include <cinttypes>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "dataset/nuscenes.h"
+#include "dataset/synthetic/synthetic_dataset.h"
+#include "geometry/util/status.h"
+#include "tests/common/test_util.h"
+#include "tests/dataset/nuscenes_fixture.h"
+
+namespace geodrive {
+namespace {
+
+namespace nj = nuscenes_json;
+using json = nlohmann::json;
+
+// Restores the process-wide front-end settings after each test.
+class FrontEnds : public ::testing::Test {
+ protected:
+  void TearDown() override {
+    nj::SetFastFrontEndEnabled(true);
+    nj::SetSliceBytes(size_t{1} << 20);
+  }
+};
+
+std::string Hex(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%a", v);
+  return buf;
+}
+
+// Every loaded field, doubles exact (hex floats), in one string.
+std::string Dump(const Nuscenes& n) {
+  std::ostringstream os;
+  auto pose = [&](const Rigid3d& p) {
+    for (int i = 0; i < 4; ++i) os << Hex(p.rotation.coeffs()[i]) << ",";
+    for (int i = 0; i < 3; ++i) os << Hex(p.translation[i]) << ",";
+  };
+  os << "category\n";
+  for (const auto& c : n.categories())
+    os << c.token.ToString() << c.name << "|" << c.description << c.index
+       << "\n";
+  os << "attribute\n";
+  for (const auto& a : n.attributes())
+    os << a.token.ToString() << a.name << "|" << a.description << "\n";
+  os << "visibility\n";
+  for (const auto& v : n.visibilities())
+    os << v.token.ToString() << v.level << "|" << v.description << "\n";
+  os << "instance\n";
+  for (const auto& i : n.instances())
+    os << i.token.ToString() << " " << i.category << " " << i.nbr_annotations
+       << " " << i.first_annotation << " " << i.last_annotation << "\n";
+  os << "sensor\n";
+  for (const auto& s : n.sensors())
+    os << s.token.ToString() << s.channel << static_cast<int>(s.modality)
+       << "\n";
+  os << "calibrated_sensor\n";
+  for (const auto& c : n.calibrated_sensors()) {
+    os << c.token.ToString() << " " << c.sensor << " " << c.has_intrinsic;
+    pose(c.ego_from_sensor);
+    for (int i = 0; i < 9; ++i) os << Hex(c.camera_intrinsic(i / 3, i % 3));
+    os << "\n";
+  }
+  os << "ego_pose\n";
+  for (const auto& e : n.ego_poses()) {
+    os << e.token.ToString() << " " << e.timestamp;
+    pose(e.global_from_ego);
+    os << "\n";
+  }
+  os << "log\n";
+  for (const auto& l : n.logs())
+    os << l.token.ToString() << l.logfile << "|" << l.vehicle << "|"
+       << l.date_captured << "|" << l.location << " " << l.map << "\n";
+  os << "scene\n";
+  for (const auto& s : n.scenes())
+    os << s.token.ToString() << s.name << "|" << s.description << " " << s.log
+       << " " << s.nbr_samples << " " << s.first_sample << " " << s.last_sample
+       << "\n";
+  os << "sample\n";
+  for (const auto& s : n.samples()) {
+    os << s.token.ToString() << " " << s.timestamp << " " << s.scene << " "
+       << s.prev << " " << s.next << " d";
+    for (int32_t d : s.data) os << " " << d;
+    os << " a";
+    for (int32_t a : s.anns) os << " " << a;
+    os << "\n";
+  }
+  os << "sample_data\n";
+  for (const auto& d : n.sample_data())
+    os << d.token.ToString() << " " << d.sample << " " << d.ego_pose << " "
+       << d.calibrated_sensor << " " << d.sensor << " " << d.prev << " "
+       << d.next << " " << d.timestamp << " " << d.width << "x" << d.height
+       << " " << d.is_key_frame << d.fileformat << "|" << d.filename << "\n";
+  os << "sample_annotation\n";
+  for (const auto& a : n.sample_annotations()) {
+    os << a.token.ToString() << " " << a.sample << " " << a.instance << " "
+       << a.visibility << " " << a.category << " " << a.prev << " " << a.next
+       << " " << a.num_lidar_pts << " " << a.num_radar_pts << " at";
+    for (int32_t t : a.attributes) os << " " << t;
+    for (int i = 0; i < 3; ++i)
+      os << " " << Hex(a.translation[i]) << " " << Hex(a.size[i]);
+    for (int i = 0; i < 4; ++i) os << " " << Hex(a.rotation.coeffs()[i]);
+    os << "\n";
+  }
+  os << "map\n";
+  for (const auto& m : n.maps()) {
+    os << m.token.ToString() << m.category << "|" << m.filename;
+    for (int32_t l : m.logs) os << " " << l;
+    os << "\n";
+  }
+  os << "chains\n";
+  for (size_t s = 0; s < n.scenes().size(); ++s) {
+    for (size_t k = 0; k < n.sensors().size(); ++k) {
+      os << s << "/" << k << ":";
+      for (int32_t d :
+           n.Chain(static_cast<int32_t>(s), static_cast<int32_t>(k)))
+        os << " " << d;
+      os << "\n";
+    }
+  }
+  return os.str();
+}
+
+// How a load ends: every field (Dump) or "error: <message>".
+std::string Outcome(const NuscenesOptions& options) {
+  try {
+    const Nuscenes n(options);
+    return Dump(n);
+  } catch (const InputError& e) {
+    return std::string("error: ") + e.what();
+  }
+}
+
+// The reference front end's outcome, and the fast one's with `threads`
+// threads and `slice_bytes` slices.
+std::string Reference(NuscenesOptions options) {
+  nj::SetFastFrontEndEnabled(false);
+  options.num_threads = 1;
+  const std::string out = Outcome(options);
+  nj::SetFastFrontEndEnabled(true);
+  return out;
+}
+std::string Fast(NuscenesOptions options, int threads, size_t slice_bytes) {
+  nj::SetSliceBytes(slice_bytes);
+  options.num_threads = threads;
+  return Outcome(options);
+}
+
+TEST(NuscenesHexTokens, EveryByteAtEveryPosition) {
+  const std::string base = "0123456789abcdeffedcba9876543210";
+  const NuscenesToken t = NuscenesToken::FromString(base);
+  EXPECT_EQ(t.hi, 0x0123456789abcdefull);
+  EXPECT_EQ(t.lo, 0xfedcba9876543210ull);
+  int hex = 0, interned = 0;
+  for (int pos = 0; pos < 32; ++pos) {
+    for (int c = 1; c < 256; ++c) {
+      std::string s = base;
+      s[pos] = static_cast<char>(c);
+      const NuscenesToken token = NuscenesToken::FromString(s);
+      const bool is_hex = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+      // Interned tokens carry the all-ones tag in hi.
+      ASSERT_EQ(token.hi != ~uint64_t{0}, is_hex) << pos << " " << c;
+      ASSERT_EQ(token.ToString(), s) << pos << " " << c;
+      if (is_hex) {
+        const int v = c <= '9' ? c - '0' : c - 'a' + 10;
+        const uint64_t word = pos < 16 ? token.hi : token.lo;
+        ASSERT_EQ((word >> (4 * (15 - pos % 16))) & 15,
+                  static_cast<uint64_t>(v));
+        ++hex;
+      } else {
+        ++interned;
+      }
+    }
+  }
+  EXPECT_EQ(hex, 32 * 16);
+  EXPECT_EQ(interned, 32 * (255 - 16));
+}
+
+TEST_F(FrontEnds, SyntheticTablesAreIdenticalAndNeverFallBack) {
+  const std::string root = test::SharedFixtureDir(
+      "nuscenes_json_synthetic", [](const std::string& dir) {
+        SyntheticDatasetOptions o;
+        o.num_scenes = 3;
+        o.scene_duration_s = 6.0;
+        o.tables_only = true;
+        o.radars = true;
+        o.cameras = {"CAM_FRONT", "CAM_FRONT_LEFT", "CAM_BACK"};
+        WriteSyntheticDataset(o, dir);
+      });
+  NuscenesOptions options;
+  options.dataroot = root;
+  const std::string reference = Reference(options);
+  ASSERT_EQ(reference.rfind("error", 0), std::string::npos) << reference;
+  const size_t fallbacks = nj::FallbackCount();
+  // Default slices (each table is one or two), then 300-byte slices (every
+  // boundary; records longer than a slice double the read), on 1-4 threads.
+  for (int threads : {1, 2, 4}) {
+    for (size_t slice : {size_t{1} << 20, size_t{300}, size_t{4096}}) {
+      EXPECT_EQ(Fast(options, threads, slice), reference)
+          << threads << " threads, slices of " << slice;
+    }
+  }
+  EXPECT_EQ(nj::FallbackCount(), fallbacks);
+  EXPECT_GT(reference.size(), 100000u);
+}
+
+TEST_F(FrontEnds, RealSceneAndFixtureAreIdenticalAndNeverFallBack) {
+  const size_t fallbacks = nj::FallbackCount();
+  NuscenesOptions real;
+  real.dataroot = test::RealDataPath("nuscenes_scene0916");
+  real.version = "v1.0-mini-extract";
+  const std::string reference = Reference(real);
+  ASSERT_EQ(reference.rfind("error", 0), std::string::npos) << reference;
+  EXPECT_EQ(Fast(real, 2, size_t{1} << 20), reference);
+  EXPECT_EQ(Fast(real, 2, 1000), reference);
+  EXPECT_EQ(Fast(real, 1, 200), reference);
+
+  test::NuscenesFixture fx;
+  NuscenesOptions fixture;
+  fixture.dataroot = fx.Write(test::MakeTempDir("nuscenes_json_fixture"));
+  const std::string fixture_reference = Reference(fixture);
+  ASSERT_EQ(fixture_reference.rfind("error", 0), std::string::npos);
+  EXPECT_EQ(Fast(fixture, 2, 256), fixture_reference);
+  EXPECT_EQ(nj::FallbackCount(), fallbacks);
+}
+
+// A value of every kind the reader distinguishes, and a few it must reject.
+json OddValue(std::mt19937& rng) {
+  static const json kValues[] = {
+      nullptr,
+      true,
+      1.5,
+      -3,
+      0,
+      -0.0,
+      1e300,
+      "str",
+      "",
+      "4",
+      json::array(),
+      {1, 2},
+      {1, 2, 3},
+      {1.0, 0.0, 0.0, 0.0},
+      {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}},
+      {{1, 2, 3}, {4, 5}},
+      {{1, {2}}, {3}},
+      {1, "x"},
+      {nullptr},
+      {true, 1},
+      json::object(),
+      {{"a", 1}},
+      {{"a", {1, {{"b", nullptr}}}}},
+      18446744073709551615ull,
+      9223372036854775808ull,
+      INT64_MIN,
+      "0123456789abcdef0123456789abcdef",
+      "samples/../x.jpg",
+      std::string("a\0b", 3),
+  };
+  return kValues[rng() % (sizeof(kValues) / sizeof(kValues[0]))];
+}
+
+// Raw text that JSON writers do not produce: literals and numbers simdjson
+// and nlohmann may judge differently, broken structure, odd escapes.
+const char* OddText(std::mt19937& rng) {
+  static const char* const kTexts[] = {
+      "1e400",
+      "-1e400",
+      "1e-400",
+      "-0",
+      "01",
+      "1.",
+      "nul",
+      "nullx",
+      "tru",
+      "NaN",
+      "\"\\udc00\"",
+      "\"\\ud800\"",
+      "\"\\ud83d\\ude00\"",
+      "\"\\u0041\"",
+      "\"\\x\"",
+      "}",
+      "]",
+      "{",
+      "[",
+      ",",
+      "},{",
+      "}, {",
+      "\"",
+      "\\",
+      "123456789012345678901234567890",
+      "18446744073709551616",
+      "-9223372036854775809",
+      "\x01",
+      "\xff",
+      " ",
+      "[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[["
+      "[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]"
+      "]]]]]]]]]"};
+  return kTexts[rng() % (sizeof(kTexts) / sizeof(kTexts[0]))];
+}
+
+// Corrupts one table of the fixture: a field set to an odd value, a field
+// removed, or raw text inserted, deleted or replaced in the written file.
+void Corrupt(std::mt19937& rng,
+             test::NuscenesFixture* fx,
+             const std::string& root) {
+  auto it = fx->tables.begin();
+  std::advance(it, rng() % fx->tables.size());
+  json& table = it->second;
+  if (table.empty()) return;
+  json& record = table[rng() % table.size()];
+  const int kind = static_cast<int>(rng() % 4);
+  if (kind <= 1) {
+    auto field = record.begin();
+    std::advance(field, rng() % record.size());
+    if (kind == 0) {
+      field.value() = OddValue(rng);
+    } else {
+      record.erase(field.key());
+    }
+    fx->Write(root);
+    return;
+  }
+  fx->Write(root);
+  const std::string path = root + "/v1.0-mini/" + it->first + ".json";
+  std::string text;
+  {
+    std::ifstream in(path, std::ios::binary);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const size_t at = rng() % (text.size() + 1);
+  if (kind == 2) {
+    text.insert(at, OddText(rng));
+  } else if (at < text.size()) {
+    text.replace(at, 1 + rng() % 3, rng() % 2 ? "" : OddText(rng));
+  }
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+}
+
+// The contract that makes the fast front end safe: on any input, the load
+// ends exactly as it did with the reference front end alone -- the same
+// tables, or the same one-line error (the same file, record and wording).
+TEST_F(FrontEnds, CorruptedTablesEndExactlyAsWithTheReference) {
+  std::mt19937 rng(test::kTestSeed);
+  const std::string root = test::MakeTempDir("nuscenes_json_corrupt");
+  int errors = 0, loads = 0, fast_taken = 0;
+  for (int round = 0; round < 400; ++round) {
+    test::NuscenesFixture fx;
+    fx.Write(root);
+    const int corruptions = 1 + static_cast<int>(rng() % 2);
+    for (int c = 0; c < corruptions; ++c) Corrupt(rng, &fx, root);
+    NuscenesOptions options;
+    options.dataroot = root;
+    const std::string reference = Reference(options);
+    const size_t before = nj::FallbackCount();
+    const std::string fast = Fast(options, 1 + round % 3, 64 + rng() % 2000);
+    ASSERT_EQ(fast, reference) << "round " << round;
+    if (reference.rfind("error: ", 0) == 0) {
+      ++errors;
+      EXPECT_EQ(reference.find('\n'), std::string::npos) << reference;
+    } else {
+      ++loads;
+    }
+    if (nj::FallbackCount() == before) ++fast_taken;
+  }
+  std::printf("corrupted tables: %d errors, %d loads, %d on the fast path\n",
+              errors, loads, fast_taken);
+  // Both outcomes and both paths are exercised.
+  EXPECT_GT(errors, 100);
+  EXPECT_GT(loads, 20);
+  EXPECT_GT(fast_taken, 100);
+  EXPECT_LT(fast_taken, 400);
+}
+
+// Errors in two slices of one table, handled by different threads: the one
+// earlier in the file is reported, whichever kind each is.
+TEST_F(FrontEnds, TheFirstErrorInFileOrderWins) {
+  const std::string root = test::MakeTempDir("nuscenes_json_two_errors");
+  for (int order = 0; order < 2; ++order) {
+    test::NuscenesFixture fx;
+    json& sd = fx.tables["sample_data"];
+    ASSERT_GT(sd.size(), 200u);
+    const size_t early = 20, late = sd.size() - 20;
+    const size_t type_error = order == 0 ? early : late;
+    sd[type_error]["timestamp"] = "soon";  // a wrong type
+    fx.Write(root);
+    const std::string path = root + "/v1.0-mini/sample_data.json";
+    std::string text;
+    {
+      std::ifstream in(path, std::ios::binary);
+      text.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    // Malformed JSON (an unterminated literal) in the other record.
+    const std::string tok =
+        sd[order == 0 ? late : early]["token"].get<std::string>();
+    const size_t at = text.find("\"is_key_frame\"", text.find(tok));
+    text.replace(text.find(':', at) + 1, 0, "tru");
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+    NuscenesOptions options;
+    options.dataroot = root;
+    const std::string reference = Reference(options);
+    EXPECT_NE(reference.find(order == 0 ? "wrong type" : "malformed JSON"),
+              std::string::npos)
+        << reference;
+    for (int threads : {1, 2, 3}) {
+      EXPECT_EQ(Fast(options, threads, 512), reference) << threads;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace geodrive
