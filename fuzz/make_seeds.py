@@ -4,6 +4,7 @@
 Run once with Debian's /usr/bin/python3 (numpy, python3-opencv) from the
 repository root, with a built `geodrive` for the nuScenes tables:
     /usr/bin/python3 fuzz/make_seeds.py build/apps/geodrive
+    /usr/bin/python3 fuzz/make_seeds.py --only npz      # one target's seeds
 The seeds are small valid (and a few nearly valid) files of every layout each
 reader accepts; they are committed, so CI does not run this script.
 """
@@ -52,6 +53,17 @@ def npy_seeds():
 PTS = np.array([[0.5, -1.25, 3.0], [1.0, 2.0, 4.5], [-0.25, 0.75, 9.0]],
                np.float32)
 RGB = np.array([[255, 0, 10], [0, 128, 255], [7, 8, 9]], np.uint8)
+
+
+def npz_seeds():
+    import io
+    rng = np.random.default_rng(8)
+    depth = rng.random((2, 3, 4), dtype=np.float32)
+    for name, save in (("stored.npz", np.savez), ("deflated.npz", np.savez_compressed)):
+        b = io.BytesIO()
+        save(b, depth=depth, depth16=depth.astype(np.float16),
+             cam_c2w=np.eye(4)[None].repeat(2, 0), images=np.zeros((2, 3, 4, 3), np.uint8))
+        out("npz", name, b.getvalue())
 
 
 def ply_seeds():
@@ -206,7 +218,11 @@ def nuscenes_seeds(geodrive):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 2 and sys.argv[1] == "--only":
+        globals()[sys.argv[2] + "_seeds"]()
+        sys.exit(0)
     npy_seeds()
+    npz_seeds()
     ply_seeds()
     pcd_seeds()
     bin_seeds()

@@ -1,5 +1,6 @@
 #include "geometry/npy.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -68,6 +69,8 @@ bool ParseDescr(const std::string& descr, NpyDtype* dtype, bool* big_endian) {
     *dtype = NpyDtype::kInt64;
   else if (code == "u2")
     *dtype = NpyDtype::kUint16;
+  else if (code == "f2")
+    *dtype = NpyDtype::kFloat16;
   else
     return false;
   // '|' (not applicable) and '=' (native) both mean the host order,
@@ -379,6 +382,54 @@ void ConvertToFloat(const uint8_t* src, float* dst, size_t n) {
   }
 }
 
+// IEEE binary16 (MegaSaM's depths) through Eigen's half: exact, incl.
+// subnormals, infinities and NaN.
+void ConvertHalfToFloat(const uint8_t* src, float* dst, size_t n) {
+  for (size_t i = 0; i < n; ++i) {
+    uint16_t bits;
+    std::memcpy(&bits, src + 2 * i, 2);
+    dst[i] = static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
+  }
+}
+
+// The array of `header` from its raw data bytes (as stored): native byte
+// order, C order, bools as 0/1.
+NpyArray DecodeData(const NpyHeader& header, std::vector<uint8_t> raw) {
+  NpyArray array;
+  array.dtype = header.dtype;
+  array.shape = header.shape;
+  const size_t elem = NpyDtypeSize(header.dtype);
+  const size_t count = raw.size() / elem;
+  if (header.big_endian == HostIsLittleEndian())
+    SwapBytes(raw.data(), count, elem);
+  if (header.fortran_order && header.shape.size() > 1) {
+    array.bytes.resize(raw.size());
+    Reorder(raw.data(), array.bytes.data(), header.shape, elem,
+            /*fortran_to_c=*/true);
+  } else {
+    array.bytes = std::move(raw);
+  }
+  if (array.dtype == NpyDtype::kBool) {
+    for (uint8_t& b : array.bytes) b = b != 0;
+  }
+  return array;
+}
+
+// Throws unless `nbytes` of data are allowed and present.
+void CheckDataSize(const std::string& path, const NpyHeader& header,
+                   uint64_t nbytes, uint64_t available,
+                   const NpyReadOptions& options) {
+  if (nbytes > options.max_bytes) {
+    ThrowInputError(path, "array of ", nbytes, " bytes (shape ",
+                    ShapeRepr(header.shape), ") exceeds the limit of ",
+                    options.max_bytes, " bytes");
+  }
+  if (available < nbytes) {
+    ThrowInputError(path, "truncated: header says ", nbytes,
+                    " bytes of data, file has ", available);
+  }
+}
+
 }  // namespace
 
 size_t NpyDtypeSize(NpyDtype dtype) {
@@ -395,6 +446,8 @@ size_t NpyDtypeSize(NpyDtype dtype) {
       return 4;
     case NpyDtype::kInt64:
       return 8;
+    case NpyDtype::kFloat16:
+      return 2;
     case NpyDtype::kUint16:
       return 2;
   }
@@ -415,6 +468,8 @@ std::string NpyDtypeDescr(NpyDtype dtype) {
       return "<i4";
     case NpyDtype::kInt64:
       return "<i8";
+    case NpyDtype::kFloat16:
+      return "<f2";
     case NpyDtype::kUint16:
       return "<u2";
   }
@@ -484,47 +539,38 @@ NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options) {
   if (!file) ThrowOpenError(path, errno);
   const NpyHeader header = ReadHeader(path, file.get(), file_size);
   const uint64_t nbytes = CheckedByteSize(path, header.shape, header.dtype);
-  if (nbytes > options.max_bytes) {
-    ThrowInputError(path, "array of ", nbytes, " bytes (shape ",
-                    ShapeRepr(header.shape), ") exceeds the limit of ",
-                    options.max_bytes, " bytes");
-  }
-  const uint64_t available = file_size - header.data_offset;
-  if (available < nbytes) {
-    ThrowInputError(path, "truncated: header says ", nbytes,
-                    " bytes of data, file has ", available);
-  }
+  CheckDataSize(path, header, nbytes, file_size - header.data_offset, options);
   if (std::fseek(file.get(), static_cast<long>(header.data_offset), SEEK_SET) !=
       0) {
     ThrowInputError(path, "cannot seek to the data");
   }
-  NpyArray array;
-  array.dtype = header.dtype;
-  array.shape = header.shape;
   std::vector<uint8_t> raw(nbytes);
   if (nbytes > 0 && std::fread(raw.data(), 1, nbytes, file.get()) != nbytes) {
     ThrowInputError(path, "read error (file changed while reading?)");
   }
-  const size_t elem = NpyDtypeSize(header.dtype);
-  const size_t count = nbytes / elem;
-  if (header.big_endian == HostIsLittleEndian())
-    SwapBytes(raw.data(), count, elem);
-  if (header.fortran_order && header.shape.size() > 1) {
-    array.bytes.resize(nbytes);
-    Reorder(raw.data(), array.bytes.data(), header.shape, elem,
-            /*fortran_to_c=*/true);
-  } else {
-    array.bytes = std::move(raw);
-  }
-  if (array.dtype == NpyDtype::kBool) {
-    for (uint8_t& b : array.bytes) b = b != 0;
-  }
-  return array;
+  return DecodeData(header, std::move(raw));
+}
+
+NpyHeader ParseNpyHeader(const std::string& what, const uint8_t* data,
+                         size_t size) {
+  return ParseHeaderBytes(what, data, size, size);
+}
+
+NpyArray ParseNpy(const std::string& what, const uint8_t* data, size_t size,
+                  const NpyReadOptions& options) {
+  const NpyHeader header = ParseHeaderBytes(what, data, size, size);
+  const uint64_t nbytes = CheckedByteSize(what, header.shape, header.dtype);
+  CheckDataSize(what, header, nbytes, size - header.data_offset, options);
+  const uint8_t* begin = data + header.data_offset;
+  return DecodeData(header, std::vector<uint8_t>(begin, begin + nbytes));
 }
 
 NpyArray ReadNpyAsFloat32(const std::string& path,
                           const NpyReadOptions& options) {
-  NpyArray in = ReadNpy(path, options);
+  return ConvertNpyToFloat32(ReadNpy(path, options));
+}
+
+NpyArray ConvertNpyToFloat32(NpyArray in) {
   if (in.dtype == NpyDtype::kFloat32) return in;
   NpyArray out = NpyArray::Zeros(NpyDtype::kFloat32, in.shape);
   const size_t n = static_cast<size_t>(in.NumElements());
@@ -535,6 +581,9 @@ NpyArray ReadNpyAsFloat32(const std::string& path,
       break;
     case NpyDtype::kFloat64:
       ConvertToFloat<double>(src, dst, n);
+      break;
+    case NpyDtype::kFloat16:
+      ConvertHalfToFloat(src, dst, n);
       break;
     case NpyDtype::kUint8:
     case NpyDtype::kBool:

@@ -23,7 +23,7 @@ SHAPES = [(), (0,), (0, 3), (7,), (3, 4), (2, 3, 4)]
 
 def expected(code, n):
     i = np.arange(n, dtype=np.int64)
-    if code in ("f4", "f8"):
+    if code in ("f2", "f4", "f8"):
         return (i * 0.25 - 7.0).astype(code)
     if code == "u1":
         return (i % 251).astype(np.uint8)

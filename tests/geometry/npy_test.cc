@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -21,7 +23,7 @@ namespace fs = std::filesystem;
 
 const NpyDtype kAllDtypes[] = {
     NpyDtype::kFloat32, NpyDtype::kFloat64, NpyDtype::kUint8, NpyDtype::kBool,
-    NpyDtype::kInt32,   NpyDtype::kInt64,   NpyDtype::kUint16};
+    NpyDtype::kInt32,   NpyDtype::kInt64,   NpyDtype::kUint16, NpyDtype::kFloat16};
 
 // The value pattern of npy_numpy_crosscheck.py's expected(): a function of the
 // C-order index.
@@ -59,6 +61,13 @@ NpyArray PatternArray(NpyDtype dtype, const std::vector<int64_t>& shape) {
       }
       case NpyDtype::kUint16: {
         const uint16_t v = static_cast<uint16_t>((i * 257) % 65536);
+        std::memcpy(p, &v, 2);
+        break;
+      }
+      case NpyDtype::kFloat16: {
+        // i * 0.25 - 7 is exact in binary16 for |i| < 2^10.
+        const uint16_t v = Eigen::numext::bit_cast<uint16_t>(
+            Eigen::half(static_cast<float>(i * 0.25 - 7.0)));
         std::memcpy(p, &v, 2);
         break;
       }
@@ -180,7 +189,7 @@ TEST(Npy, RoundTripsAllLayoutsAndVersions) {
       }
     }
   }
-  EXPECT_EQ(files, 7 * 3 * 2 * 2);
+  EXPECT_EQ(files, 8 * 3 * 2 * 2);
 }
 
 TEST(Npy, ReadsHandMadeFortranOrderFile) {
@@ -259,6 +268,7 @@ TEST(Npy, ReadAsFloat32ConvertsEveryDtype) {
       switch (dtype) {
         case NpyDtype::kFloat32:
         case NpyDtype::kFloat64:
+        case NpyDtype::kFloat16:
           want = i * 0.25 - 7.0;
           break;
         case NpyDtype::kUint8:
@@ -422,7 +432,7 @@ TEST(Npy, AcceptsNumpyDialectsOfTheHeader) {
 
 TEST(Npy, UnsupportedDtypesAreRejected) {
   const std::string dir = test::MakeTempDir("npy_dtype");
-  const char* descrs[] = {"<c8", "<f2", "<U10", "|O", "<i2", "<M8[ns]"};
+  const char* descrs[] = {"<c8", "<U10", "|O", "<i2", "<M8[ns]"};
   for (const char* descr : descrs) {
     const std::string path = dir + "/t.npy";
     WriteAll(path, MakeNpy(std::string("{'descr': '") + descr +
@@ -579,13 +589,13 @@ TEST(NpyNumpy, NumpyLoadsEveryFileWeWrite) {
     }
   }
   manifest.close();
-  EXPECT_EQ(files, 324);
+  EXPECT_EQ(files, 378);
   std::string out;
   const int rc = test::RunCommand(std::string(test::kDebianPython) + " " +
                                       CrosscheckScript() + " check " + dir,
                                   &out);
   EXPECT_EQ(rc, 0) << out;
-  EXPECT_THAT(out, HasSubstr("checked 324 files"));
+  EXPECT_THAT(out, HasSubstr("checked 378 files"));
   std::cout << out;
 }
 

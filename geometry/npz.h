@@ -1,0 +1,49 @@
+#pragma once
+// NumPy .npz archives (numpy.savez and numpy.savez_compressed): zip files whose
+// members are .npy files, stored or deflated, read through libzip (Debian
+// libzip-dev; zip64, CRC checks). The reconstruction front-ends' outputs (VGGT
+// predictions.npz, Depth Anything 3 results.npz, MegaSaM *.npz, CUT3R's camera
+// npz, our generic npz) are read with it. Every failure throws InputError
+// naming the archive and the member.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "geometry/npy.h"
+
+namespace geodrive {
+
+class NpzReader {
+ public:
+  // Opens the archive and lists its members. Throws InputError when the file
+  // is missing, is not a zip archive, or is damaged.
+  explicit NpzReader(const std::string& path);
+  ~NpzReader();
+  NpzReader(const NpzReader&) = delete;
+  NpzReader& operator=(const NpzReader&) = delete;
+
+  const std::string& path() const;
+  // The arrays' names (member names without ".npy"), in archive order.
+  const std::vector<std::string>& Keys() const;
+  bool Has(const std::string& key) const;
+  // The header of array `key` (reads only the member's first bytes).
+  NpyHeader Header(const std::string& key) const;
+  // Array `key`. Its declared size is checked against the member's
+  // uncompressed size and options.max_bytes before anything is allocated; a
+  // truncated member or a CRC mismatch is an error.
+  NpyArray Read(const std::string& key,
+                const NpyReadOptions& options = {}) const;
+  // Array `key` converted to float32 (float16 depths included).
+  NpyArray ReadAsFloat32(const std::string& key,
+                         const NpyReadOptions& options = {}) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// True when `path` starts with a zip signature (an .npz or any zip file).
+bool LooksLikeZip(const std::string& path);
+
+}  // namespace geodrive
