@@ -32,7 +32,10 @@ inline uint64_t PackKey(float z, int index) {
 // that contains its projection; returns the number of such points. Pixel
 // (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5) in shifted
 // coordinates.
+// Entries [k0, m) of `blk` are projected (ProjectBlock); entries [0, k0)
+// already hold their pixel and key (ProjectPixelsAvx2).
 inline int64_t SplatPoints(ProjectedBlock* blk,
+                           int k0,
                            int m,
                            int base,
                            int w,
@@ -41,7 +44,7 @@ inline int64_t SplatPoints(ProjectedBlock* blk,
                            uint64_t* kb) {
   int32_t* pix = blk->ok;  // becomes the pixel index, -1 outside the image
   int64_t projected = 0;
-  for (int k = 0; k < m; ++k) {
+  for (int k = k0; k < m; ++k) {
     // 0 <= fu < W and 0 <= fv < H from sign bits (vectorises; see
     // ProjectBlock).
     const float fu = blk->u[k] + 0.5f, fv = blk->v[k] + 0.5f;
@@ -64,6 +67,100 @@ inline int64_t SplatPoints(ProjectedBlock* blk,
   }
   return projected;
 }
+
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+#define GEODRIVE_AVX2 __attribute__((target("avx2")))
+
+// Radius 0, eight points at a time: ProjectBlock and the first pass of
+// SplatPoints fused, with the same float operations in the same order (no
+// FMA), so the pixels and keys are those of the scalar code. Fills entries
+// [0, *k_done) of blk->ok (pixel, -1 outside) and blk->key, where *k_done is m
+// rounded down to a multiple of 8; returns how many of them are in the image.
+GEODRIVE_AVX2 int64_t ProjectPixelsAvx2(const PackedCloud& soa,
+                                        int base,
+                                        int m,
+                                        const FrameProjector& p,
+                                        int w,
+                                        float fw,
+                                        float fh,
+                                        ProjectedBlock* blk,
+                                        int* k_done) {
+  const __m256 r0 = _mm256_set1_ps(p.r[0]), r1 = _mm256_set1_ps(p.r[1]),
+               r2 = _mm256_set1_ps(p.r[2]), r3 = _mm256_set1_ps(p.r[3]),
+               r4 = _mm256_set1_ps(p.r[4]), r5 = _mm256_set1_ps(p.r[5]),
+               r6 = _mm256_set1_ps(p.r[6]), r7 = _mm256_set1_ps(p.r[7]),
+               r8 = _mm256_set1_ps(p.r[8]);
+  const __m256 t0 = _mm256_set1_ps(p.t[0]), t1 = _mm256_set1_ps(p.t[1]),
+               t2 = _mm256_set1_ps(p.t[2]);
+  const float* px = soa.x.data() + base;
+  const float* py = soa.y.data() + base;
+  const float* pz = soa.z.data() + base;
+  int64_t projected = 0;
+  int k = 0;
+  for (; k + 8 <= m; k += 8) {
+    const __m256 x = _mm256_loadu_ps(px + k), y = _mm256_loadu_ps(py + k),
+                 z = _mm256_loadu_ps(pz + k);
+    // x_cam = R x + t, evaluated as ((r0 x + r1 y) + r2 z) + t0, as in C++.
+    const __m256 zc = _mm256_add_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(r6, x), _mm256_mul_ps(r7, y)),
+                      _mm256_mul_ps(r8, z)),
+        t2);
+    const __m256 xc = _mm256_add_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(r0, x), _mm256_mul_ps(r1, y)),
+                      _mm256_mul_ps(r2, z)),
+        t0);
+    const __m256 yc = _mm256_add_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(r3, x), _mm256_mul_ps(r4, y)),
+                      _mm256_mul_ps(r5, z)),
+        t1);
+    const __m256 inv = _mm256_div_ps(_mm256_set1_ps(1.0f), zc);
+    // fu = (fx * xc) * inv + cx + 0.5, likewise fv.
+    const __m256 half = _mm256_set1_ps(0.5f);
+    const __m256 fu = _mm256_add_ps(
+        _mm256_add_ps(
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(p.fx), xc), inv),
+            _mm256_set1_ps(p.cx)),
+        half);
+    const __m256 fv = _mm256_add_ps(
+        _mm256_add_ps(
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(p.fy), yc), inv),
+            _mm256_set1_ps(p.cy)),
+        half);
+    // Sign bit set where near - zc < 0, zc - far < 0, fu >= 0, fu - W < 0,
+    // fv >= 0 and fv - H < 0: the scalar code's SignBit tests.
+    __m256 in = _mm256_and_ps(_mm256_sub_ps(_mm256_set1_ps(p.near), zc),
+                              _mm256_sub_ps(zc, _mm256_set1_ps(p.far)));
+    in = _mm256_and_ps(
+        in, _mm256_andnot_ps(fu, _mm256_sub_ps(fu, _mm256_set1_ps(fw))));
+    in = _mm256_and_ps(
+        in, _mm256_andnot_ps(fv, _mm256_sub_ps(fv, _mm256_set1_ps(fh))));
+    // pixel = int(fv) * W + int(fu) inside, -1 outside.
+    const __m256 zero = _mm256_setzero_ps();
+    const __m256i col = _mm256_cvttps_epi32(_mm256_blendv_ps(zero, fu, in));
+    const __m256i row = _mm256_cvttps_epi32(_mm256_blendv_ps(zero, fv, in));
+    const __m256i pix =
+        _mm256_add_epi32(_mm256_mullo_epi32(row, _mm256_set1_epi32(w)), col);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(blk->ok + k),
+                        _mm256_castps_si256(_mm256_blendv_ps(
+                            _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
+                            _mm256_castsi256_ps(pix), in)));
+    projected +=
+        __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(in)));
+    // key = z bits << 32 | point index: interleave the 32-bit halves, then
+    // put the four 64-bit keys of each half back in point order.
+    const __m256i idx = _mm256_add_epi32(
+        _mm256_set1_epi32(base + k), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    const __m256i zbits = _mm256_castps_si256(zc);
+    const __m256i lo = _mm256_unpacklo_epi32(idx, zbits);  // points 0 1 | 4 5
+    const __m256i hi = _mm256_unpackhi_epi32(idx, zbits);  // points 2 3 | 6 7
+    __m256i* keys = reinterpret_cast<__m256i*>(blk->key + k);
+    _mm256_storeu_si256(keys, _mm256_permute2x128_si256(lo, hi, 0x20));
+    _mm256_storeu_si256(keys + 1, _mm256_permute2x128_si256(lo, hi, 0x31));
+  }
+  *k_done = k;
+  return projected;
+}
+#endif
 
 // Disk splats of one projected block into the key buffer: every pixel of a
 // point's bounding box whose centre is within the radius (d² <= r², float)
@@ -214,8 +311,6 @@ int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
 }
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
-#define GEODRIVE_AVX2 __attribute__((target("avx2")))
-
 // Eight resolved pixels: point index (-1 where empty), depth bits (0 where
 // empty), the RGB bytes (12 per 128-bit lane, zeros above) and the all-ones
 // lanes of the empty pixels.
@@ -270,8 +365,10 @@ GEODRIVE_AVX2 int64_t ResolveZAvx2Run(const ZResolveArgs& a, size_t* p_out) {
     const __m128i c2 = _mm256_castsi256_si128(r1.rgb);
     const __m128i c3 = _mm256_extracti128_si256(r1.rgb, 1);
     const __m128i w0 = _mm_or_si128(c0, _mm_slli_si128(c1, 12));
-    const __m128i w1 = _mm_or_si128(_mm_srli_si128(c1, 4), _mm_slli_si128(c2, 8));
-    const __m128i w2 = _mm_or_si128(_mm_srli_si128(c2, 8), _mm_slli_si128(c3, 4));
+    const __m128i w1 =
+        _mm_or_si128(_mm_srli_si128(c1, 4), _mm_slli_si128(c2, 8));
+    const __m128i w2 =
+        _mm_or_si128(_mm_srli_si128(c2, 8), _mm_slli_si128(c3, 4));
     // Mask: the 32-bit invalid lanes narrowed to bytes (pixel order restored
     // by the 64-bit permute), inverted.
     const __m256i inv16 = _mm256_permute4x64_epi64(
@@ -302,8 +399,8 @@ GEODRIVE_AVX2 int64_t ResolveZAvx2Run(const ZResolveArgs& a, size_t* p_out) {
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p + 8),
                           r1.index);
     }
-    valid += 16 - __builtin_popcount(static_cast<unsigned>(
-                      _mm_movemask_epi8(inv8)));
+    valid +=
+        16 - __builtin_popcount(static_cast<unsigned>(_mm_movemask_epi8(inv8)));
   }
   if (kStream) _mm_sfence();  // order the streaming stores before the return
   *p_out = p;
@@ -358,11 +455,18 @@ void RenderZBuffer(const PackedCloud& soa,
   for (const ProjectedRange& range : ranges) {
     for (int base = range.begin; base < range.end; base += kBlock) {
       const int m = std::min(kBlock, range.end - base);
-      ProjectBlock(soa, base, m, range.proj, &blk);
       if (r <= 0) {
-        projected += SplatPoints(&blk, m, base, w, fw, fh, kb);
+        int k0 = 0;
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+        if (UseAvx2())
+          projected +=
+              ProjectPixelsAvx2(soa, base, m, range.proj, w, fw, fh, &blk, &k0);
+#endif
+        ProjectBlock(soa, base, m, range.proj, &blk, k0);
+        projected += SplatPoints(&blk, k0, m, base, w, fw, fh, kb);
         continue;
       }
+      ProjectBlock(soa, base, m, range.proj, &blk);
       projected += SplatDisks(blk, m, base, r, w, h, kb);
     }
   }

@@ -140,13 +140,14 @@ struct PackedCloud {
               const RenderOptions& options);
 };
 
-// Projects points [base, base + n) to shifted pixel coordinates; ok = near < z
-// < far.
+// Projects points [base + k0, base + n) to shifted pixel coordinates (entries
+// k0..n-1 of `out`); ok = near < z < far.
 inline void ProjectBlock(const PackedCloud& soa,
                          int base,
                          int n,
                          const FrameProjector& p,
-                         ProjectedBlock* out) {
+                         ProjectedBlock* out,
+                         int k0 = 0) {
   const float* __restrict px = soa.x.data() + base;
   const float* __restrict py = soa.y.data() + base;
   const float* __restrict pz = soa.z.data() + base;
@@ -160,7 +161,7 @@ inline void ProjectBlock(const PackedCloud& soa,
               t2 = p.t[2];
   const float fx = p.fx, fy = p.fy, cx = p.cx, cy = p.cy, near = p.near,
               far = p.far;
-  for (int k = 0; k < n; ++k) {
+  for (int k = k0; k < n; ++k) {
     const float x = px[k], y = py[k], w = pz[k];
     const float zc = r6 * x + r7 * y + r8 * w + t2;
     const float xc = r0 * x + r1 * y + r2 * w + t0;

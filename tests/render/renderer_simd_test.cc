@@ -1,0 +1,152 @@
+// The radius-0 z-buffer's AVX2 projection and 16-pixel resolve against the
+// scalar kernels at the edges the main renderer tests do not reach: point
+// counts that leave a tail of fewer than 8 points per block, image sizes that
+// leave a tail of fewer than 16 pixels, points exactly on pixel borders, on the
+// near and far planes, behind the camera and off the image, and runs split by
+// hidden points.
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+
+#include "render/renderer.h"
+
+namespace geodrive {
+namespace {
+
+bool SameBytes(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y) {
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0)
+      return false;
+  }
+  return true;
+}
+
+// Points in front of a camera at the origin (x right, y down, z forward),
+// with exact ties, points on pixel borders (u = i + 0.5 in the integer-index
+// convention), on the near and far planes, behind the camera and far off the
+// image.
+PointCloud EdgeCaseCloud(int n, const PinholeCamera& camera) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  PointCloud cloud;
+  for (int i = 0; i < n; ++i) {
+    float z = 0.5f + 20.0f * unit(rng);
+    switch (i % 9) {
+      case 0:
+        z = 1.0f;
+        break;  // near plane (options.near = 1)
+      case 1:
+        z = 30.0f;
+        break;  // far plane
+      case 2:
+        z = -2.0f;
+        break;  // behind the camera
+      default:
+        break;
+    }
+    float u = -5.0f + (camera.width + 10.0f) * unit(rng);
+    float v = -5.0f + (camera.height + 10.0f) * unit(rng);
+    if (i % 7 == 3) u = std::floor(u) + 0.5f;  // on a pixel border
+    if (i % 11 == 4) v = std::floor(v) - 0.5f;
+    if (i % 13 == 5) u = 1e6f;  // far off the image
+    const float x =
+        (u - static_cast<float>(camera.cx)) * z / static_cast<float>(camera.fx);
+    const float y =
+        (v - static_cast<float>(camera.cy)) * z / static_cast<float>(camera.fy);
+    cloud.positions.emplace_back(x, y, z);
+    cloud.colors.emplace_back(static_cast<uint8_t>(i),
+                              static_cast<uint8_t>(i >> 8),
+                              static_cast<uint8_t>(3 * i));
+    if (i % 17 == 6 && i > 0) {  // an exact duplicate of the previous point
+      cloud.positions.back() = cloud.positions[cloud.positions.size() - 2];
+    }
+  }
+  return cloud;
+}
+
+void ExpectSameFrames(const RenderResult& a,
+                      const RenderResult& b,
+                      const std::string& what) {
+  ASSERT_EQ(a.frames.size(), b.frames.size()) << what;
+  for (size_t f = 0; f < a.frames.size(); ++f) {
+    const RenderedFrame& x = a.frames[f];
+    const RenderedFrame& y = b.frames[f];
+    const std::string at = what + " frame " + std::to_string(f);
+    EXPECT_EQ(x.num_projected, y.num_projected) << at;
+    EXPECT_EQ(x.num_valid, y.num_valid) << at;
+    EXPECT_TRUE(SameBytes(x.rgb, y.rgb)) << at;
+    EXPECT_TRUE(SameBytes(x.depth, y.depth)) << at;
+    EXPECT_TRUE(SameBytes(x.mask, y.mask)) << at;
+    EXPECT_TRUE(SameBytes(x.index, y.index)) << at;
+  }
+}
+
+TEST(RendererSimd, RadiusZeroTailsBordersAndPlanesMatchScalar) {
+  // 37 x 23 = 851 pixels: 53 chunks of 16 and a tail of 3.
+  const PinholeCamera camera(30, 28, 18.0, 11.0, 37, 23);
+  std::vector<Rigid3d> poses;
+  poses.push_back(Rigid3d());
+  poses.push_back(
+      Rigid3d(QuaternionFromAngleAxis(Eigen::Vector3d(0.01, -0.02, 0.005)),
+              Eigen::Vector3d(0.05, -0.02, 0.1)));
+  for (const int n : {1, 7, 8, 9, 517, 1029, 3001}) {
+    const PointCloud cloud = EdgeCaseCloud(n, camera);
+    for (const bool with_index : {false, true}) {
+      RenderOptions options;
+      options.width = camera.width;
+      options.height = camera.height;
+      options.near = 1.0;
+      options.far = 30.0;
+      options.output_index = with_index;
+      options.num_threads = 1;
+      const std::string what =
+          "n " + std::to_string(n) + (with_index ? " index" : "");
+      const bool previous = SetRendererSimdEnabled(true);
+      RenderResult simd;
+      RenderFramesInto(cloud, {camera}, poses, options, &simd);
+      SetRendererSimdEnabled(false);
+      RenderResult scalar;
+      RenderFramesInto(cloud, {camera}, poses, options, &scalar);
+      SetRendererSimdEnabled(previous);
+      ExpectSameFrames(simd, scalar, what);
+      // Runs of 1..12 points between hidden points (tails of every length).
+      std::vector<size_t> hidden;
+      for (size_t i = 3, step = 2; i < cloud.size();
+           i += step, step = step % 12 + 1)
+        hidden.push_back(i);
+      SetRendererSimdEnabled(true);
+      RenderResult simd_hidden;
+      RenderFramesWithMovingSets(cloud, {}, {camera}, poses, options,
+                                 &simd_hidden, hidden);
+      SetRendererSimdEnabled(false);
+      RenderResult scalar_hidden;
+      RenderFramesWithMovingSets(cloud, {}, {camera}, poses, options,
+                                 &scalar_hidden, hidden);
+      SetRendererSimdEnabled(previous);
+      ExpectSameFrames(simd_hidden, scalar_hidden, what + " hidden");
+    }
+  }
+}
+
+// The resolve also resets the key buffer (tails included), so rendering again
+// into reused outputs, with the thread's scratch reused, gives the same bytes.
+TEST(RendererSimd, ReusedOutputsGiveTheSameBytes) {
+  const PinholeCamera camera(30, 28, 18.0, 11.0, 37, 23);
+  const PointCloud cloud = EdgeCaseCloud(2000, camera);
+  RenderOptions options;
+  options.width = camera.width;
+  options.height = camera.height;
+  options.near = 1.0;
+  options.far = 30.0;
+  RenderResult first, reused;
+  RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &first);
+  RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &reused);
+  RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &reused);
+  ExpectSameFrames(first, reused, "reused");
+}
+
+}  // namespace
+}  // namespace geodrive
