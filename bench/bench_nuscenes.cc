@@ -1,15 +1,19 @@
-// nuScenes reader benchmarks: loading the 13 tables (SAX streaming into compact
-// structs) at v1.0-mini and v1.0-trainval scale, plus the projections. The
-// tables come from the synthetic generator in tables-only mode (`geodrive synth
-// --tables-only`, all six cameras, LIDAR_TOP and the five radars), cached under
+// nuScenes reader benchmarks: loading the 13 tables (simdjson over slices of
+// whole records, on all threads, into compact structs) at v1.0-mini and
+// v1.0-trainval scale, plus the projections. The tables come from the
+// synthetic generator in tables-only mode (`geodrive synth --tables-only`, all
+// six cameras, LIDAR_TOP and the five radars), cached under
 // $GEODRIVE_BENCH_DIR (default /tmp/geodrive_bench_nuscenes).
 //
-//   bench_nuscenes --benchmark_filter=Load/10      # v1.0-mini size (10 scenes)
-//   bench_nuscenes --benchmark_filter=Load/850     # v1.0-trainval size (850
-//   scenes, ~2.6 M rows)
+//   bench_nuscenes --benchmark_filter=Load/10/0    # v1.0-mini size (10 scenes)
+//   bench_nuscenes --benchmark_filter=Load/850/0   # v1.0-trainval size (850
+//                                                  # scenes, ~2.6 M rows)
 //
-// Counters: rows = sample_data rows, MB = JSON size, peak_rss_MB = the
-// process's peak RSS.
+// BM_Load/<scenes>/<threads>: threads 0 = one per core (OpenMP's default), 1 =
+// one thread. CPU time is the process's (all threads). Counters: sample_data
+// rows, MB = JSON size, peak_rss_MB = the process's peak RSS so far (run one
+// size per process for a memory figure). The nuScenes devkit on the same
+// tables: bench/nuscenes_tables_vs_devkit.sh.
 
 #include <benchmark/benchmark.h>
 #include <sys/resource.h>
@@ -57,6 +61,7 @@ void BM_Load(benchmark::State& state) {
   NuscenesOptions options;
   options.dataroot = root;
   options.version = "v1.0-bench";
+  options.num_threads = static_cast<int>(state.range(1));
   size_t rows = 0, bytes = 0, anns = 0;
   for (auto _ : state) {
     Nuscenes nusc(options);
@@ -73,10 +78,13 @@ void BM_Load(benchmark::State& state) {
   state.counters["peak_rss_MB"] = PeakRssMb();
 }
 BENCHMARK(BM_Load)
-    ->Arg(10)
-    ->Arg(850)
+    ->Args({10, 0})
+    ->Args({10, 1})
+    ->Args({850, 0})
+    ->Args({850, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
+    ->MeasureProcessCPUTime()
     ->Iterations(1);
 
 void BM_SelectClips(benchmark::State& state) {

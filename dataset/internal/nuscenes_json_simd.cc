@@ -203,15 +203,36 @@ struct SliceParser::Impl {
   JsonRecord record;
 
   // A number as nlohmann's SAX reports it: an integer in the int64 range
-  // (is_integer), an unsigned integer above it, or a double. Not through
-  // get_number(): in simdjson 3.0.1 it gives 0 for a double with more than 19
-  // significant digits (found by the corrupted-tables test; get_double() is
-  // right).
+  // (is_integer), an unsigned integer above it, or a double. simdjson 3.0.1's
+  // get_number() gives 0 for a double of more than 19 significant digits
+  // (found by the corrupted-tables test; get_double() is right), so a token
+  // longer than 19 characters goes through get_number_type() and the typed
+  // getter; shorter ones (all that JSON writers emit for doubles) through the
+  // single-pass get_number().
   static bool ReadNumber(od::value value,
                          double* number,
                          int64_t* integer,
                          bool* is_integer) {
     od::number_type type;
+    if (value.raw_json_token().size() <= 19) {
+      od::number n;
+      if (value.get_number().get(n)) return false;
+      type = n.get_number_type();
+      if (type == od::number_type::signed_integer) {
+        *integer = n.get_int64();
+        *number = static_cast<double>(*integer);
+        *is_integer = true;
+      } else if (type == od::number_type::unsigned_integer) {  // > INT64_MAX
+        *integer = static_cast<int64_t>(n.get_uint64());
+        *number = static_cast<double>(n.get_uint64());
+        *is_integer = false;
+      } else {
+        *integer = 0;
+        *number = n.get_double();
+        *is_integer = false;
+      }
+      return true;
+    }
     if (value.get_number_type().get(type)) return false;
     switch (type) {
       case od::number_type::signed_integer:
@@ -219,7 +240,7 @@ struct SliceParser::Impl {
         *number = static_cast<double>(*integer);
         *is_integer = true;
         return true;
-      case od::number_type::unsigned_integer: {  // > INT64_MAX
+      case od::number_type::unsigned_integer: {
         uint64_t u;
         if (value.get_uint64().get(u)) return false;
         *integer = static_cast<int64_t>(u);
