@@ -29,6 +29,7 @@
 #include <memory>
 #include <mutex>
 #include <sstream>
+#include <thread>
 #include <unordered_map>
 
 #include "dataset/internal/nuscenes_json.h"
@@ -496,45 +497,71 @@ class TypedTableTask : public TableTask {
   TableRows<Row> result_;
 };
 
-// Runs fn(i) for i in [0, n) on `num_threads` threads (0: OpenMP's default)
-// and rethrows the exception of the smallest i that threw: the error a serial
-// loop would have stopped at. Rows after it may have run too.
+// The loader's thread count: `num_threads`, or OpenMP's default for 0 (so
+// OMP_NUM_THREADS applies, and 1 inside another parallel region).
+int LoaderThreads(int num_threads) {
+  return num_threads > 0 ? num_threads : omp_get_max_threads();
+}
+
+// Runs body(k) for k in [0, threads) on the calling thread and threads - 1
+// std::threads. Not an OpenMP region: OpenMP's idle threads spin-wait between
+// regions (GOMP_SPINCOUNT), which at v1.0-mini size cost as much CPU as the
+// load itself and slowed the serial steps in between on a busy machine.
+// `body` must not throw.
+template <typename Body>
+void RunOnThreads(int threads, Body body) {
+  std::vector<std::thread> pool;
+  pool.reserve(threads > 1 ? threads - 1 : 0);
+  for (int k = 1; k < threads; ++k) pool.emplace_back([&body, k] { body(k); });
+  body(0);
+  for (auto& t : pool) t.join();
+}
+
+// Runs fn(i) for i in [0, n) on `num_threads` threads and rethrows the
+// exception of the smallest i that threw: the error a serial loop would have
+// stopped at. Rows after it may have run too.
 template <typename Fn>
 void ForEachRow(size_t n, int num_threads, Fn fn) {
-  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
-  if (threads <= 1 || n < 8192) {
+  constexpr size_t kBlock = 4096;
+  const int threads = LoaderThreads(num_threads);
+  if (threads <= 1 || n < 2 * kBlock) {
     for (size_t i = 0; i < n; ++i) fn(i);
     return;
   }
-  std::atomic<int64_t> first_error{static_cast<int64_t>(n)};
+  std::atomic<size_t> next_block{0};
+  std::atomic<size_t> first_error{n};
   std::exception_ptr error;
   std::mutex mutex;
-#pragma omp parallel for schedule(static, 4096) num_threads(threads)
-  for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
-    if (i > first_error.load(std::memory_order_relaxed)) continue;
-    try {
-      fn(static_cast<size_t>(i));
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(mutex);
-      if (i < first_error) {
-        first_error = i;
-        error = std::current_exception();
+  RunOnThreads(threads, [&](int) {
+    for (;;) {
+      const size_t begin = kBlock * next_block++;
+      if (begin >= n || begin > first_error.load()) return;
+      const size_t end = std::min(n, begin + kBlock);
+      for (size_t i = begin; i < end; ++i) {
+        try {
+          fn(i);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (i < first_error) {
+            first_error = i;
+            error = std::current_exception();
+          }
+          break;
+        }
       }
     }
-  }
+  });
   if (error) std::rethrow_exception(error);
 }
 
-// Runs Work of every task on `num_threads` threads (0: OpenMP's default),
-// tables in order: the threads share a table's slices, then move on.
+// Runs Work of every task on `num_threads` threads, tables in order: the
+// threads share a table's slices, then move on.
 void RunTableTasks(const std::vector<std::unique_ptr<TableTask>>& tasks,
                    int num_threads) {
   if (!nj::FastFrontEndEnabled()) return;
-  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
   std::exception_ptr error;
   std::mutex error_mutex;
-#pragma omp parallel num_threads(threads)
-  {
+  RunOnThreads(LoaderThreads(num_threads), [&](int) {
     try {
       nj::SliceParser parser;
       nj::Slice slice;
@@ -543,7 +570,7 @@ void RunTableTasks(const std::vector<std::unique_ptr<TableTask>>& tasks,
       std::lock_guard<std::mutex> lock(error_mutex);
       if (!error) error = std::current_exception();
     }
-  }
+  });
   if (error) std::rethrow_exception(error);
 }
 
@@ -928,16 +955,16 @@ void Nuscenes::BuildTokenIndices(const LoadState* state) {
   // One table per thread; the first table (in table order) with a duplicate
   // throws, as a serial pass would.
   std::exception_ptr errors[kNumTables];
-  const int threads =
-      options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int table = 0; table < kNumTables; ++table) {
-    try {
-      BuildTokenIndex(table, state->paths[table]);
-    } catch (...) {
-      errors[table] = std::current_exception();
+  std::atomic<int> next{0};
+  RunOnThreads(LoaderThreads(options_.num_threads), [&](int) {
+    for (int table = next++; table < kNumTables; table = next++) {
+      try {
+        BuildTokenIndex(table, state->paths[table]);
+      } catch (...) {
+        errors[table] = std::current_exception();
+      }
     }
-  }
+  });
   for (const auto& error : errors) {
     if (error) std::rethrow_exception(error);
   }
