@@ -711,21 +711,28 @@ std::vector<uint8_t> EncodePng(const std::string& path, const cv::Mat& image) {
   return std::vector<uint8_t>(p, p + size);
 }
 
-std::vector<uint8_t> EncodeJpeg(const std::string& path, const cv::Mat& image) {
-  if (image.depth() != CV_8U)
-    ThrowInputError(path, "JPEG needs an 8-bit image");
-  TjHandle tj = NewTjHandle(path, /*decompress=*/false);
+std::vector<uint8_t> EncodeJpeg(const std::string& path,
+                                const cv::Mat& image,
+                                int quality) {
+  if (image.empty()) ThrowInputError(path, "cannot encode an empty image");
   const int cn = image.channels();
+  if (image.depth() != CV_8U || (cn != 1 && cn != 3 && cn != 4)) {
+    ThrowInputError(path, "JPEG needs an 8-bit image (gray, RGB or RGBA; ",
+                    "got OpenCV type ", image.type(), ")");
+  }
+  if (quality < 1 || quality > 100)
+    ThrowInputError(path, "JPEG quality ", quality, " is not in [1, 100]");
+  TjHandle tj = NewTjHandle(path, /*decompress=*/false);
   const int pixel_format = cn == 1 ? TJPF_GRAY : cn == 3 ? TJPF_RGB : TJPF_RGBA;
   unsigned char* jpeg = nullptr;
   unsigned long size = 0;  // NOLINT(runtime/int): TurboJPEG's type
-  // OpenCV's settings: quality 95, 4:2:0, standard Huffman tables and the
-  // accurate integer DCT (TurboJPEG would take the fast one below quality 96),
-  // so that the files are byte-identical to cv::imencode's.
+  // OpenCV's settings: 4:2:0, standard Huffman tables and the accurate
+  // integer DCT (TurboJPEG would take the fast one below quality 96), so that
+  // the files are byte-identical to cv::imencode's.
   const int rc = tjCompress2(
       tj.get(), image.data, image.cols, static_cast<int>(image.step[0]),
       image.rows, pixel_format, &jpeg, &size,
-      cn == 1 ? TJSAMP_GRAY : TJSAMP_420, 95, TJFLAG_ACCURATEDCT);
+      cn == 1 ? TJSAMP_GRAY : TJSAMP_420, quality, TJFLAG_ACCURATEDCT);
   std::unique_ptr<unsigned char, void (*)(unsigned char*)> owned(jpeg, tjFree);
   if (rc != 0) {
     ThrowInputError(path, "cannot encode JPEG (libjpeg: ",
@@ -793,11 +800,22 @@ void WriteImageRgb(const std::string& path, const cv::Mat& rgb) {
   if (ext == ".png") {
     encoded = EncodePng(path, rgb);
   } else if (ext == ".jpg" || ext == ".jpeg") {
-    encoded = EncodeJpeg(path, rgb);
+    encoded = EncodeJpeg(path, rgb, 95);
   } else {
     ThrowInputError(path, "cannot encode image as ", ext,
                     " (expected .png, .jpg or .jpeg)");
   }
+  WriteFileAtomic(path, encoded.data(), encoded.size());
+}
+
+std::vector<uint8_t> EncodeJpegRgb(const cv::Mat& rgb,
+                                   int quality,
+                                   const std::string& what) {
+  return EncodeJpeg(what, rgb, quality);
+}
+
+void WriteJpeg(const std::string& path, const cv::Mat& rgb, int quality) {
+  const std::vector<uint8_t> encoded = EncodeJpeg(path, rgb, quality);
   WriteFileAtomic(path, encoded.data(), encoded.size());
 }
 

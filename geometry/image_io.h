@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 namespace geodrive {
 
@@ -47,6 +48,20 @@ cv::Mat ReadImageRgbScaled(const std::string& path,
 // PNG: libspng, compression level 3, deterministic, exact round trip. JPEG:
 // TurboJPEG, quality 95, 4:2:0 (gray stays gray, alpha is dropped).
 void WriteImageRgb(const std::string& path, const cv::Mat& rgb);
+
+// JPEG encoding at a chosen quality (1..100) through TurboJPEG with OpenCV's
+// cv::imencode(".jpg") settings: 4:2:0 chroma subsampling (gray stays gray),
+// the accurate integer DCT, standard Huffman tables, a JFIF header, baseline.
+// `rgb` is RGB CV_8UC3, RGBA CV_8UC4 (alpha dropped) or gray CV_8UC1. The
+// bytes equal cv::imencode's with IMWRITE_JPEG_QUALITY = quality on the
+// channel-swapped image (same libjpeg-turbo), and are deterministic. Throws
+// InputError naming `what` (a file name or a description) on a bad image or
+// quality. WriteImageRgb's .jpg is EncodeJpegRgb(rgb, 95).
+std::vector<uint8_t> EncodeJpegRgb(const cv::Mat& rgb,
+                                   int quality,
+                                   const std::string& what = "JPEG encoder");
+// EncodeJpegRgb written atomically (temporary file + rename) to `path`.
+void WriteJpeg(const std::string& path, const cv::Mat& rgb, int quality);
 
 // Size of the image ReadImageRgb would return, from the header alone (JPEG SOF
 // and EXIF orientation, PNG IHDR and eXIf): nothing is decoded. Truncated files

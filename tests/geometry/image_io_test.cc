@@ -409,6 +409,33 @@ TEST(ImageIo, JpegWritesAreByteIdenticalToOpenCvs) {
   EXPECT_EQ(ReadAll(dir + "/rgba.jpg"), ReadAll(dir + "/rgb.jpg"));
 }
 
+TEST(ImageIo, EncodeJpegRgbIsOpenCvsImencodeAtEveryQuality) {
+  // The synthetic dataset's camera JPEGs (quality 90) were cv::imencode's;
+  // EncodeJpegRgb must give the same bytes (same libjpeg-turbo, 4:2:0,
+  // accurate DCT), so that `geodrive synth` output is unchanged.
+  const std::string dir = test::MakeTempDir("img_jpeg_quality");
+  const cv::Mat rgb = SmoothImage(90, 160);
+  cv::Mat bgr, gray;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
+  for (int quality : {1, 30, 75, 90, 95, 96, 100}) {
+    std::vector<uint8_t> opencv;
+    ASSERT_TRUE(cv::imencode(".jpg", bgr, opencv,
+                             {cv::IMWRITE_JPEG_QUALITY, quality}));
+    EXPECT_EQ(EncodeJpegRgb(rgb, quality), opencv) << "quality " << quality;
+    ASSERT_TRUE(cv::imencode(".jpg", gray, opencv,
+                             {cv::IMWRITE_JPEG_QUALITY, quality}));
+    EXPECT_EQ(EncodeJpegRgb(gray, quality), opencv) << "gray " << quality;
+  }
+  WriteJpeg(dir + "/q90.jpg", rgb, 90);
+  const std::vector<uint8_t> q90 = EncodeJpegRgb(rgb, 90);
+  EXPECT_EQ(ReadAll(dir + "/q90.jpg"), std::string(q90.begin(), q90.end()));
+  EXPECT_THROW(EncodeJpegRgb(rgb, 0), InputError);
+  EXPECT_THROW(EncodeJpegRgb(rgb, 101), InputError);
+  EXPECT_THROW(EncodeJpegRgb(cv::Mat(), 90), InputError);
+  EXPECT_THROW(EncodeJpegRgb(cv::Mat(4, 4, CV_16UC1), 90), InputError);
+}
+
 TEST(ImageIo, ReadsRealNuscenesJpeg) {
   const cv::Mat rgb = ReadImageRgb(test::RealDataPath(kNuscenesJpeg));
   EXPECT_EQ(rgb.cols, 1600);
