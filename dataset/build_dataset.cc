@@ -148,9 +148,20 @@ std::string BuildDatasetSummary::BriefReport() const {
     os << " [" << stage << ": " << n << "]";
   os << " of " << clips_total << " clips in " << seconds_total << " s";
   if (interrupted) os << " (interrupted: rerun to resume)";
+  // Wall seconds, then the worker threads' CPU seconds (keys with
+  // internal::kCpuStagePrefix; the scale fit's CPU is inside geometry's).
+  const std::string cpu = internal::kCpuStagePrefix;
   os << "\ntime per stage (s, summed over clips):";
-  for (const auto& [stage, s] : seconds_by_stage)
-    os << " " << stage << " " << s;
+  for (const auto& [stage, s] : seconds_by_stage) {
+    if (stage.rfind(cpu, 0) != 0) os << " " << stage << " " << s;
+  }
+  bool first = true;
+  for (const auto& [stage, s] : seconds_by_stage) {
+    if (stage.rfind(cpu, 0) != 0) continue;
+    if (first) os << "\nCPU per stage (s, summed over clips, worker threads):";
+    first = false;
+    os << " " << stage.substr(cpu.size()) << " " << s;
+  }
   return os.str();
 }
 

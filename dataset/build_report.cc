@@ -118,9 +118,18 @@ void WriteBuildReport(const std::string& out,
   }
   os << "</table>";
   if (summary && !summary->seconds_by_stage.empty()) {
-    os << "<h2>Time per stage (s, summed over clips)</h2><table>";
-    for (const auto& [s, t] : summary->seconds_by_stage) {
-      os << "<tr><th>" << Html(s) << "</th><td>" << t << "</td></tr>";
+    // Wall and worker-thread CPU seconds (keys "cpu:<stage>", written by
+    // dataset/pair_builder.cc; the scale fit's CPU is inside geometry's).
+    const std::string cpu = "cpu:";
+    const auto& stages = summary->seconds_by_stage;
+    os << "<h2>Time per stage (s, summed over clips)</h2><table>"
+       << "<tr><th>stage</th><th>wall</th><th>CPU</th></tr>";
+    for (const auto& [s, t] : stages) {
+      if (s.rfind(cpu, 0) == 0) continue;
+      const auto c = stages.find(cpu + s);
+      os << "<tr><th>" << Html(s) << "</th><td>" << t << "</td><td>";
+      if (c != stages.end()) os << c->second;
+      os << "</td></tr>";
     }
     os << "</table>";
   }

@@ -3,6 +3,8 @@
 
 #include "dataset/internal/pair_builder.h"
 
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,6 +13,8 @@
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
+#include "dataset/frame_decode.h"
+#include "dataset/internal/pair_png.h"
 #include "geodrive_version.h"
 #include "geometry/image_io.h"
 #include "geometry/util/files.h"
@@ -26,75 +30,84 @@ namespace geodrive {
 namespace internal {
 namespace {
 
-// Times each stage into a map; tags exceptions with the stage.
+double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+// Times each stage into a map: wall time under the stage's name and this
+// thread's CPU time under kCpuStagePrefix + name (the figure that holds on a
+// shared machine; helper threads of a stage are not counted); tags exceptions
+// with the stage.
 class StageTimer {
  public:
   explicit StageTimer(std::map<std::string, double>* sink) : sink_(sink) {}
   template <typename F>
   auto Run(const std::string& stage, F&& f) -> decltype(f()) {
     const auto t0 = std::chrono::steady_clock::now();
+    const double cpu0 = ThreadCpuSeconds();
     try {
       if constexpr (std::is_void_v<decltype(f())>) {
         f();
-        Add(stage, t0);
+        Add(stage, t0, cpu0);
       } else {
         auto result = f();
-        Add(stage, t0);
+        Add(stage, t0, cpu0);
         return result;
       }
     } catch (const StageError&) {
-      Add(stage, t0);
+      Add(stage, t0, cpu0);
       throw;
     } catch (const std::exception& e) {
-      Add(stage, t0);
+      Add(stage, t0, cpu0);
       throw StageError(stage, e.what());
     }
   }
 
  private:
-  void Add(const std::string& stage, std::chrono::steady_clock::time_point t0) {
+  void Add(const std::string& stage,
+           std::chrono::steady_clock::time_point t0,
+           double cpu0) {
     (*sink_)[stage] +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
             .count();
+    (*sink_)[kCpuStagePrefix + stage] += ThreadCpuSeconds() - cpu0;
   }
   std::map<std::string, double>* sink_;
 };
-
-cv::Mat ResizeToOutput(const cv::Mat& rgb, const ImageResizeSpec& spec) {
-  cv::Mat resized;
-  const bool down = spec.resized_width < rgb.cols;
-  cv::resize(rgb, resized, cv::Size(spec.resized_width, spec.resized_height), 0,
-             0, down ? cv::INTER_AREA : cv::INTER_LINEAR);
-  return resized(
-             cv::Rect(spec.crop_left, spec.crop_top, spec.width, spec.height))
-      .clone();
-}
 
 bool IsVehicle(const std::string& category) {
   return category.rfind("vehicle.", 0) == 0;
 }
 
 // PSNR (dB, data range 255) over the pixels where mask != 0; nullopt if none.
+// Integer sums (exact, so the same value as summing in double), branch-free
+// so that the compiler vectorises the row loop.
 std::optional<double> MaskedPsnr(const cv::Mat& a,
                                  const cv::Mat& b,
                                  const cv::Mat& mask) {
-  double se = 0;
+  int64_t se = 0;
   int64_t n = 0;
   for (int y = 0; y < a.rows; ++y) {
-    const auto* pa = a.ptr<cv::Vec3b>(y);
-    const auto* pb = b.ptr<cv::Vec3b>(y);
-    const auto* pm = mask.ptr<uint8_t>(y);
+    const uint8_t* pa = a.ptr<uint8_t>(y);
+    const uint8_t* pb = b.ptr<uint8_t>(y);
+    const uint8_t* pm = mask.ptr<uint8_t>(y);
+    int64_t row_se = 0;
+    int row_n = 0;
     for (int x = 0; x < a.cols; ++x) {
-      if (!pm[x]) continue;
-      for (int c = 0; c < 3; ++c) {
-        const double d = static_cast<double>(pa[x][c]) - pb[x][c];
-        se += d * d;
-      }
-      n += 3;
+      const int m = pm[x] != 0;
+      const int d0 = pa[3 * x] - pb[3 * x];
+      const int d1 = pa[3 * x + 1] - pb[3 * x + 1];
+      const int d2 = pa[3 * x + 2] - pb[3 * x + 2];
+      row_se += m * (d0 * d0 + d1 * d1 + d2 * d2);
+      row_n += m;
     }
+    se += row_se;
+    n += 3 * row_n;
   }
   if (n == 0) return std::nullopt;
-  const double mse = se / n;
+  const double mse = static_cast<double>(se) / n;
   return mse <= 0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
@@ -136,22 +149,31 @@ std::optional<double> StaticPsnr(const cv::Mat& cond,
 }  // namespace
 
 ClipFrames ReadClipFrames(const DriveClip& clip,
-                          const BuildDatasetOptions& opt) {
+                          const BuildDatasetOptions& opt,
+                          bool keep_full) {
   GEODRIVE_CHECK_INPUT(!clip.frames.empty(), clip.id, ": clip has no frames");
   const PinholeCamera& cam = clip.frames.front().camera;
   const ImageResizeSpec spec = OutputSpec(cam, opt);
   const int n = clip.num_frames();
   ClipFrames out;
-  out.full.resize(n);
+  out.first_frame_path = clip.frames.front().image_path;
   out.gt.resize(n);
+  if (keep_full) out.full.resize(n);
   for (int i = 0; i < n; ++i) {
     const std::string& path = clip.frames[i].image_path;
+    if (!keep_full) {  // DCT-scaled decode straight to the output size
+      out.gt[i] = ReadFrameAtOutputSize(path, cam.width, cam.height, spec);
+      continue;
+    }
     out.full[i] = ReadImageRgb(path);
     GEODRIVE_CHECK_INPUT(
         out.full[i].cols == cam.width && out.full[i].rows == cam.height, path,
         ": image is ", out.full[i].cols, "x", out.full[i].rows,
         " but the dataset says ", cam.width, "x", cam.height);
-    out.gt[i] = ResizeToOutput(out.full[i], spec);
+    // The same output as ReadFrameAtOutputSize: the scaled decode again
+    // (decoding is cheaper than resizing the full image, and the ground
+    // truth must not depend on the scene source).
+    out.gt[i] = ReadFrameAtOutputSize(path, cam.width, cam.height, spec);
   }
   return out;
 }
@@ -164,7 +186,7 @@ ConditionScene BuildClipScene(const DriveClip& clip,
   const std::unique_ptr<SceneSource> source = CreateSceneSource(name);
   SceneInputs in;
   in.clip = &clip;
-  in.clip_images = &images;
+  if (!images.empty()) in.clip_images = &images;
   if (source->Traits().needs_path) {
     GEODRIVE_CHECK_INPUT(!path.empty(), clip.id,
                          ": no input folder for scene "
@@ -339,14 +361,14 @@ void WritePairFolder(const std::string& dir,
     meta->files["gt_frames"] = "gt_frames";
     meta->files["cond_frames"] = "cond_frames";
   }
-  WriteImageRgb(dir + "/first_frame.png", gt.front());
+  WritePairPng(dir + "/first_frame.png", gt.front());
   ContactSheetOptions co;
   co.columns = 9;
   co.thumb_width = 160;
   std::vector<cv::Mat> gt_sel, cond_sel;
   for (size_t i = 0; i < gt.size(); i += 3)
     gt_sel.push_back(gt[i]), cond_sel.push_back(cond.frames[i]);
-  WriteImageRgb(dir + "/preview.png", MakeContactSheet(cond_sel, gt_sel, co));
+  WritePairPng(dir + "/preview.png", MakeContactSheet(cond_sel, gt_sel, co));
   WriteBoxesJson(dir + "/boxes.json", boxes);
   if (opt.export_format == PairExport::kGeodriveUpstream) {
     WriteUpstreamFrames(dir, frames, cond);
@@ -376,13 +398,18 @@ void WriteUpstreamFrames(const std::string& dir,
   for (size_t i = 0; i < cond.native_frames.size(); ++i) {
     // Frame 0 is the real image (upstream replaces it); the others are the
     // renderer's frames (exactly 576x1024 with the released preset).
-    const cv::Mat& src = i == 0 ? frames.full.front() : cond.native_frames[i];
+    cv::Mat real;
+    if (i == 0) {
+      real = frames.full.empty() ? ReadImageRgb(frames.first_frame_path)
+                                 : frames.full.front();
+    }
+    const cv::Mat& src = i == 0 ? real : cond.native_frames[i];
     cv::Mat f = src;
     if (f.size() != size) {
       cv::resize(src, f, size, 0, 0,
                  src.cols > size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
     }
-    WriteImageRgb(up + "/render_" + std::to_string(i) + ".png", f);
+    WritePairPng(up + "/render_" + std::to_string(i) + ".png", f);
   }
 }
 
@@ -440,8 +467,12 @@ PairMeta BuildPair(const ClipContext& ctx,
   StageTimer timer(stage_seconds);
   const DriveClip clip =
       timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
+  // Full-size frames only for sources that colour from them (needs_clip:
+  // the LiDAR sources); the others get the ground truth alone.
+  const bool keep_full =
+      CreateSceneSource(opt.SceneSourceName())->Traits().needs_clip;
   const ClipFrames frames =
-      timer.Run("gt", [&] { return ReadClipFrames(clip, opt); });
+      timer.Run("gt", [&] { return ReadClipFrames(clip, opt, keep_full); });
   const std::string path =
       ctx.folders ? ctx.folders->Find(clip_id).value_or("") : std::string();
   const ConditionScene scene = timer.Run(

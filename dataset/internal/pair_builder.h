@@ -36,12 +36,18 @@ struct ClipContext {
   const SceneFolders* folders = nullptr;
 };
 
-// The clip's images: at source size (for sources that colour from them) and
-// at the output size (the ground truth).
+// The clip's images: at source size (only for sources that colour from them;
+// empty otherwise) and at the output size (the ground truth).
 struct ClipFrames {
   std::vector<cv::Mat> full;
   std::vector<cv::Mat> gt;
+  // Frame 0's file (the upstream export reads it at full size).
+  std::string first_frame_path;
 };
+
+// Stage-time keys with this prefix hold the worker thread's CPU seconds of
+// the stage (the others wall seconds).
+inline constexpr char kCpuStagePrefix[] = "cpu:";
 
 // The condition frames at the output size, with their per-frame quality.
 struct ConditionRender {
@@ -53,9 +59,12 @@ struct ConditionRender {
   std::vector<std::optional<double>> psnr_static;
 };
 
-// Reads and resizes the clip's images (checking them against the camera).
+// Reads the clip's images at the output size (dataset/frame_decode.h: a
+// DCT-scaled decode, then a resize), and at full size too with `keep_full`;
+// each is checked against the camera.
 ClipFrames ReadClipFrames(const DriveClip& clip,
-                          const BuildDatasetOptions& options);
+                          const BuildDatasetOptions& options,
+                          bool keep_full);
 // The clip's scene from the run's scene source; `path` is the clip's input
 // folder for sources that read one (SceneFolders), empty otherwise.
 ConditionScene BuildClipScene(const DriveClip& clip,
