@@ -202,8 +202,9 @@ struct NuscenesOptions {
   double quaternion_norm_tol = 1e-3;
   // Reject sample_data chains whose timestamps decrease.
   bool check_chain_order = true;
-  // Threads that parse the tables (OpenMP); 0 = OpenMP's default, 1 = this
-  // thread only. The result does not depend on it.
+  // Threads that load the tables; 0 = OpenMP's default count
+  // (OMP_NUM_THREADS), 1 = this thread only. The result (and any error) does
+  // not depend on it.
   int num_threads = 0;
   void Check() const;
 };
