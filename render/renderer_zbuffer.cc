@@ -311,112 +311,60 @@ int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
 }
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
-// Eight resolved pixels: point index (-1 where empty), depth bits (0 where
-// empty), the RGB bytes (12 per 128-bit lane, zeros above) and the all-ones
-// lanes of the empty pixels.
-struct Resolved8 {
-  __m256i index, depth, rgb, invalid;
-};
-
-// Splits the keys of pixels [p, p + 8) into index and depth halves, gathers
-// the colours and shuffles RGBX to RGB; resets the keys.
-GEODRIVE_AVX2 inline Resolved8 Resolve8(const ZResolveArgs& a, size_t p) {
+// Eight pixels at a time: split the keys into index and depth halves, gather
+// the colours, shuffle RGBX to RGB.
+__attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
   const __m256i empty = _mm256_set1_epi64x(static_cast<long long>(kEmptyKey));
   const __m256i even_odd = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
-  // Per 128-bit lane: RGBX x 4 -> RGB x 4 (12 bytes).
+  const __m256i empty_hi = _mm256_set1_epi32(0x7fffffff);
+  const __m256i sentinel = _mm256_set1_epi32(static_cast<int>(a.sentinel));
+  // Per 128-bit lane: RGBX x 4 -> RGB x 4 (12 bytes), and byte 0 of each
+  // 32-bit word -> 4 bytes.
   const __m256i rgb_shuffle =
       _mm256_setr_epi8(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1,
                        0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1);
-  __m256i* kp = reinterpret_cast<__m256i*>(a.keys + p);
-  const __m256i k0 = _mm256_loadu_si256(kp);
-  const __m256i k1 = _mm256_loadu_si256(kp + 1);
-  _mm256_storeu_si256(kp, empty);
-  _mm256_storeu_si256(kp + 1, empty);
-  const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
-  const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
-  const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
-  const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
-  Resolved8 r;
-  r.invalid = _mm256_cmpeq_epi32(hi, _mm256_set1_epi32(0x7fffffff));
-  const __m256i idx = _mm256_blendv_epi8(
-      lo, _mm256_set1_epi32(static_cast<int>(a.sentinel)), r.invalid);
-  const __m256i col =
-      _mm256_i32gather_epi32(reinterpret_cast<const int*>(a.colors), idx, 4);
-  r.rgb = _mm256_shuffle_epi8(col, rgb_shuffle);
-  r.depth = _mm256_andnot_si256(r.invalid, hi);
-  r.index = _mm256_or_si256(lo, r.invalid);
-  return r;
-}
-
-// Sixteen pixels at a time: 48 RGB bytes, 64 depth bytes and 16 mask bytes per
-// step, written with streaming (non-temporal) stores when kStream (the outputs
-// are not read again while rendering, and 25 frames outgrow the caches; this
-// also saves reading each output line before writing it). The per-pixel index
-// stays cached (hole filling and the index outputs read it).
-template <bool kStream>
-GEODRIVE_AVX2 int64_t ResolveZAvx2Run(const ZResolveArgs& a, size_t* p_out) {
+  const __m256i byte0_shuffle = _mm256_setr_epi8(
+      0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12,
+      -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
   int64_t valid = 0;
   size_t p = 0;
-  for (; p + 16 <= a.npix; p += 16) {
-    const Resolved8 r0 = Resolve8(a, p), r1 = Resolve8(a, p + 8);
-    // RGB: four 12-byte runs -> three 16-byte words.
-    const __m128i c0 = _mm256_castsi256_si128(r0.rgb);
-    const __m128i c1 = _mm256_extracti128_si256(r0.rgb, 1);
-    const __m128i c2 = _mm256_castsi256_si128(r1.rgb);
-    const __m128i c3 = _mm256_extracti128_si256(r1.rgb, 1);
-    const __m128i w0 = _mm_or_si128(c0, _mm_slli_si128(c1, 12));
-    const __m128i w1 =
-        _mm_or_si128(_mm_srli_si128(c1, 4), _mm_slli_si128(c2, 8));
-    const __m128i w2 =
-        _mm_or_si128(_mm_srli_si128(c2, 8), _mm_slli_si128(c3, 4));
-    // Mask: the 32-bit invalid lanes narrowed to bytes (pixel order restored
-    // by the 64-bit permute), inverted.
-    const __m256i inv16 = _mm256_permute4x64_epi64(
-        _mm256_packs_epi32(r0.invalid, r1.invalid), 0xd8);
-    const __m128i inv8 = _mm_packs_epi16(_mm256_castsi256_si128(inv16),
-                                         _mm256_extracti128_si256(inv16, 1));
-    const __m128i mask = _mm_xor_si128(inv8, _mm_set1_epi32(-1));
-    __m128i* rgb = reinterpret_cast<__m128i*>(a.rgb + 3 * p);
-    __m256i* depth = reinterpret_cast<__m256i*>(a.depth + p);
-    __m128i* mask_out = reinterpret_cast<__m128i*>(a.mask + p);
-    if (kStream) {
-      _mm_stream_si128(rgb, w0);
-      _mm_stream_si128(rgb + 1, w1);
-      _mm_stream_si128(rgb + 2, w2);
-      _mm256_stream_si256(depth, r0.depth);
-      _mm256_stream_si256(depth + 1, r1.depth);
-      _mm_stream_si128(mask_out, mask);
-    } else {
-      _mm_storeu_si128(rgb, w0);
-      _mm_storeu_si128(rgb + 1, w1);
-      _mm_storeu_si128(rgb + 2, w2);
-      _mm256_storeu_si256(depth, r0.depth);
-      _mm256_storeu_si256(depth + 1, r1.depth);
-      _mm_storeu_si128(mask_out, mask);
-    }
+  // The second 16-byte RGB store reaches 4 bytes past the 8 pixels: stop
+  // while 2 more pixels remain, the scalar tail does the rest.
+  for (; p + 10 <= a.npix; p += 8) {
+    __m256i* kp = reinterpret_cast<__m256i*>(a.keys + p);
+    const __m256i k0 = _mm256_loadu_si256(kp);
+    const __m256i k1 = _mm256_loadu_si256(kp + 1);
+    _mm256_storeu_si256(kp, empty);
+    _mm256_storeu_si256(kp + 1, empty);
+    const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
+    const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
+    const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
+    const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
+    const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
+    const __m256i idx = _mm256_blendv_epi8(lo, sentinel, invalid);
+    const __m256i col =
+        _mm256_i32gather_epi32(reinterpret_cast<const int*>(a.colors), idx, 4);
+    const __m256i rgb = _mm256_shuffle_epi8(col, rgb_shuffle);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p),
+                     _mm256_castsi256_si128(rgb));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p + 12),
+                     _mm256_extracti128_si256(rgb, 1));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.depth + p),
+                        _mm256_andnot_si256(invalid, hi));
     if (a.index) {
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p), r0.index);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p + 8),
-                          r1.index);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p),
+                          _mm256_or_si256(lo, invalid));
     }
-    valid +=
-        16 - __builtin_popcount(static_cast<unsigned>(_mm_movemask_epi8(inv8)));
+    const __m256i m = _mm256_shuffle_epi8(
+        _mm256_andnot_si256(invalid, _mm256_set1_epi32(0xff)), byte0_shuffle);
+    const uint64_t mask8 = static_cast<uint32_t>(_mm256_extract_epi32(m, 0)) |
+                           (static_cast<uint64_t>(static_cast<uint32_t>(
+                                _mm256_extract_epi32(m, 4)))
+                            << 32);
+    std::memcpy(a.mask + p, &mask8, 8);
+    valid += 8 - __builtin_popcount(static_cast<unsigned>(
+                     _mm256_movemask_ps(_mm256_castsi256_ps(invalid))));
   }
-  if (kStream) _mm_sfence();  // order the streaming stores before the return
-  *p_out = p;
-  return valid;
-}
-
-GEODRIVE_AVX2 int64_t ResolveZAvx2(const ZResolveArgs& a) {
-  // Streaming stores need 16-byte aligned RGB and mask rows and 32-byte
-  // aligned depth (cv::Mat data is 64-byte aligned; offsets are multiples of
-  // 16 pixels).
-  const bool aligned = reinterpret_cast<uintptr_t>(a.rgb) % 16 == 0 &&
-                       reinterpret_cast<uintptr_t>(a.mask) % 16 == 0 &&
-                       reinterpret_cast<uintptr_t>(a.depth) % 32 == 0;
-  size_t p = 0;
-  const int64_t valid =
-      aligned ? ResolveZAvx2Run<true>(a, &p) : ResolveZAvx2Run<false>(a, &p);
   return valid + ResolveZScalar(a, p);
 }
 #endif
