@@ -3,11 +3,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
+#include "geometry/image_io.h"
 #include "geometry/util/status.h"
+#include "render/video/ffmpeg_encode.h"
 #include "render/video/h264.h"
 
 namespace geodrive {
@@ -31,10 +31,9 @@ int ThumbHeight(const cv::Mat& frame, int tw) {
                          static_cast<double>(frame.rows) * tw / frame.cols)));
 }
 
-int FourCC(const std::string& code) {
+void CheckFourCC(const std::string& code) {
   GEODRIVE_CHECK_INPUT(code.size() == 4, "video: fourcc '", code,
                        "' must have 4 characters");
-  return cv::VideoWriter::fourcc(code[0], code[1], code[2], code[3]);
 }
 
 }  // namespace
@@ -42,8 +41,8 @@ int FourCC(const std::string& code) {
 void VideoWriteOptions::Check() const {
   GEODRIVE_CHECK_INPUT(fps > 0 && fps <= 1000, "video: fps ", fps,
                        " must be in (0, 1000]");
-  FourCC(fourcc);
-  if (!fallback_fourcc.empty()) FourCC(fallback_fourcc);
+  CheckFourCC(fourcc);
+  if (!fallback_fourcc.empty()) CheckFourCC(fallback_fourcc);
 }
 
 struct VideoStreamWriter::Impl {
@@ -51,8 +50,7 @@ struct VideoStreamWriter::Impl {
   VideoWriteResult result;
   cv::Size size, frame_size;
   std::unique_ptr<H264Mp4Writer> h264;
-  cv::VideoWriter opencv;
-  cv::Mat bgr;
+  std::unique_ptr<FfmpegVideoWriter> other;  // any other fourcc
   bool closed = false;
 };
 
@@ -80,21 +78,26 @@ VideoStreamWriter::VideoStreamWriter(const std::string& path,
     return;
   }
   m.result.fourcc = options.fourcc;
-  if (!m.opencv.open(path, cv::CAP_FFMPEG, FourCC(options.fourcc), options.fps,
-                     m.size, true)) {
-    GEODRIVE_CHECK_INPUT(!options.fallback_fourcc.empty(), path,
-                         ": cannot open a video writer with fourcc ",
-                         options.fourcc);
-    std::cerr << "warning: " << path << ": fourcc " << options.fourcc
-              << " is not available through OpenCV's FFmpeg backend; using "
-              << options.fallback_fourcc << "\n";
-    m.result.fourcc = options.fallback_fourcc;
-    m.result.fell_back = true;
-    GEODRIVE_CHECK_INPUT(
-        m.opencv.open(path, cv::CAP_FFMPEG, FourCC(options.fallback_fourcc),
-                      options.fps, m.size, true),
-        path, ": cannot open a video writer (tried ", options.fourcc, " and ",
-        options.fallback_fourcc, ")");
+  std::string first_error;
+  try {
+    m.other = std::make_unique<FfmpegVideoWriter>(path, width, height,
+                                                  options.fourcc, options.fps);
+    return;
+  } catch (const InputError& e) {
+    first_error = e.what();
+  }
+  GEODRIVE_CHECK_INPUT(!options.fallback_fourcc.empty(), first_error);
+  std::cerr << "warning: " << path << ": fourcc " << options.fourcc
+            << " is not available (" << first_error << "); using "
+            << options.fallback_fourcc << "\n";
+  m.result.fourcc = options.fallback_fourcc;
+  m.result.fell_back = true;
+  try {
+    m.other = std::make_unique<FfmpegVideoWriter>(
+        path, width, height, options.fallback_fourcc, options.fps);
+  } catch (const InputError& e) {
+    ThrowInputError(path, "cannot open a video writer (tried ", options.fourcc,
+                    " and ", options.fallback_fourcc, "): ", e.what());
   }
 }
 
@@ -109,13 +112,7 @@ void VideoStreamWriter::Write(const cv::Mat& rgb) {
   if (m.h264) {
     m.h264->Write(rgb);
   } else {
-    cv::cvtColor(rgb, m.bgr, cv::COLOR_RGB2BGR);
-    if (m.bgr.size() != m.size) {
-      cv::copyMakeBorder(m.bgr, m.bgr, 0, m.size.height - m.bgr.rows, 0,
-                         m.size.width - m.bgr.cols, cv::BORDER_CONSTANT,
-                         cv::Scalar(0, 0, 0));
-    }
-    m.opencv.write(m.bgr);
+    m.other->Write(rgb);  // pads odd sizes itself
   }
   ++m.result.frames;
 }
@@ -127,12 +124,9 @@ VideoWriteResult VideoStreamWriter::Close() {
   m.closed = true;
   if (m.h264) {
     m.h264->Finish();
-    return m.result;
+  } else {
+    m.other->Finish();
   }
-  m.opencv.release();
-  GEODRIVE_CHECK_INPUT(
-      std::filesystem::exists(m.path) && std::filesystem::file_size(m.path) > 0,
-      m.path, ": the video writer produced no file");
   return m.result;
 }
 
@@ -159,16 +153,12 @@ std::vector<std::string> WritePngSequence(
   GEODRIVE_CHECK_INPUT(!ec, dir, ": cannot create directory (", ec.message(),
                        ")");
   std::vector<std::string> paths;
-  cv::Mat bgr;
-  const std::vector<int> params = {cv::IMWRITE_PNG_COMPRESSION, 3};
   for (size_t i = 0; i < frames_rgb.size(); ++i) {
     char name[64];
     std::snprintf(name, sizeof(name), "%04zu.png", i + first_index);
     const std::string path =
         (std::filesystem::path(dir) / (prefix + name)).string();
-    cv::cvtColor(frames_rgb[i], bgr, cv::COLOR_RGB2BGR);
-    GEODRIVE_CHECK_INPUT(cv::imwrite(path, bgr, params), path,
-                         ": cannot write PNG");
+    WriteImageRgb(path, frames_rgb[i]);  // libspng, level 3, atomic
     paths.push_back(path);
   }
   return paths;

@@ -10,8 +10,10 @@ namespace geodrive {
 
 struct VideoWriteOptions {
   double fps = 10;
-  // FourCC tried first through OpenCV's FFmpeg backend; "avc1" = H.264. If it
-  // cannot be opened, `fallback_fourcc` is used (with a warning on stderr).
+  // FourCC tried first; "avc1" = H.264 through the deterministic libx264
+  // writer (h264.h), any other through FFmpeg's encoder for that FourCC in the
+  // container of the extension (ffmpeg_encode.h). If it cannot be opened,
+  // `fallback_fourcc` is used (with a warning on stderr).
   std::string fourcc = "avc1";
   std::string fallback_fourcc = "mp4v";
   void Check() const;
@@ -32,7 +34,7 @@ VideoWriteResult WriteVideo(const std::string& path,
                             const VideoWriteOptions& options = {});
 
 // WriteVideo one frame at a time (the H.264 path through H264Mp4Writer, the
-// fallback through OpenCV's VideoWriter): a long clip is never held whole.
+// others through FfmpegVideoWriter): a long clip is never held whole.
 // Destroyed before Close() (an exception), it leaves no partial H.264 file.
 class VideoStreamWriter {
  public:
@@ -55,8 +57,8 @@ class VideoStreamWriter {
   std::unique_ptr<Impl> impl_;
 };
 
-// Lossless PNG sequence `<dir>/<prefix>NNNN.png` (4-digit, from 0). Returns the
-// paths.
+// Lossless PNG sequence `<dir>/<prefix>NNNN.png` (4-digit, from 0), written by
+// WriteImageRgb (libspng, zlib level 3, atomic). Returns the paths.
 // The files are numbered from `first_index` (streaming writers call it once
 // per chunk of frames).
 std::vector<std::string> WritePngSequence(

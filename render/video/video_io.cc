@@ -4,12 +4,11 @@
 #include <cctype>
 #include <filesystem>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include "geometry/image_io.h"
 #include "geometry/util/status.h"
+#include "render/video/ffmpeg_decode.h"
+#include "render/video/ffmpeg_encode.h"
 
 namespace fs = std::filesystem;
 
@@ -69,8 +68,8 @@ bool IsImageFile(const std::string& path) {
 
 std::vector<cv::Mat> ReadVideoFrames(const std::string& path) {
   GEODRIVE_CHECK_INPUT(fs::exists(path), path, ": no such file or folder");
-  std::vector<cv::Mat> frames;
   if (fs::is_directory(path)) {
+    std::vector<cv::Mat> frames;
     const std::vector<std::string> files = ImageFilesIn(path);
     GEODRIVE_CHECK_INPUT(!files.empty(), path,
                          ": empty video (no .png/.jpg frames in the folder)");
@@ -83,22 +82,8 @@ std::vector<cv::Mat> ReadVideoFrames(const std::string& path) {
   GEODRIVE_CHECK_INPUT(
       IsVideoFile(path), path,
       ": not a video (expected .mp4/.avi/.mkv/.mov/.webm or a frame folder)");
-  cv::VideoCapture capture(path, cv::CAP_FFMPEG);
-  GEODRIVE_CHECK_INPUT(capture.isOpened(), path,
-                       ": cannot be opened as a video");
-  cv::Mat bgr;
-  while (capture.read(bgr)) {
-    if (bgr.empty()) break;
-    GEODRIVE_CHECK_INPUT(bgr.depth() == CV_8U && bgr.channels() == 3, path,
-                         ": decoded frames are not 8-bit 3-channel");
-    cv::Mat rgb;
-    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-    frames.push_back(rgb);
-    CheckSameSize(frames, path);
-  }
-  GEODRIVE_CHECK_INPUT(!frames.empty(), path,
-                       ": empty video (no frame could be decoded)");
-  return frames;
+  GEODRIVE_CHECK_INPUT(fs::is_regular_file(path), path, ": not a regular file");
+  return DecodeVideoFileRgb(path);
 }
 
 void WriteVideoFrames(const std::string& path,
@@ -118,19 +103,12 @@ void WriteVideoFrames(const std::string& path,
     }
     return;
   }
-  const std::string ext = LowerExtension(path);
-  const int fourcc = ext == ".avi"
-                         ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G')
-                         : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  const std::string fourcc = LowerExtension(path) == ".avi" ? "MJPG" : "mp4v";
   if (fs::path(path).has_parent_path())
     fs::create_directories(fs::path(path).parent_path());
-  cv::VideoWriter writer(path, cv::CAP_FFMPEG, fourcc, fps, frames[0].size());
-  GEODRIVE_CHECK_INPUT(writer.isOpened(), path, ": cannot open a video writer");
-  cv::Mat bgr;
-  for (const cv::Mat& f : frames) {
-    cv::cvtColor(f, bgr, cv::COLOR_RGB2BGR);
-    writer.write(bgr);
-  }
+  FfmpegVideoWriter writer(path, frames[0].cols, frames[0].rows, fourcc, fps);
+  for (const cv::Mat& f : frames) writer.Write(f);
+  writer.Finish();
 }
 
 std::vector<VideoSource> ListVideos(const std::string& path,

@@ -1,8 +1,9 @@
 #pragma once
-// Video inputs of `geodrive eval`: MP4 (or any container OpenCV's FFmpeg
-// backend reads), folders of frames (PNG/JPG sorted by file name), folders of
-// such videos, and the dataset's pairs folders (pairs/<clip_id>/gt.mp4,
-// cond.mp4, ...). Frames are RGB CV_8UC3.
+// Video inputs of `geodrive eval`: MP4/MOV, AVI and Matroska/WebM files
+// (decoded through FFmpeg's libraries, render/video/ffmpeg_decode.h), folders
+// of frames (PNG/JPG sorted by file name), folders of such videos, and the
+// dataset's pairs folders (pairs/<clip_id>/gt.mp4, cond.mp4, ...). Frames are
+// RGB CV_8UC3.
 
 #include <opencv2/core.hpp>
 #include <string>
@@ -15,13 +16,16 @@ bool IsVideoFile(const std::string& path);
 // True for .png .jpg .jpeg (case-insensitive).
 bool IsImageFile(const std::string& path);
 
-// Reads every frame of a video file or frame folder as RGB CV_8UC3. Throws
-// InputError naming the path if it does not exist, cannot be decoded, has no
-// frames, or frames change size.
+// Reads every frame of a video file or frame folder as RGB CV_8UC3 (a video
+// file: the frames cv::VideoCapture returned, see ffmpeg_decode.h). Throws
+// InputError naming the path if it does not exist, cannot be decoded (not a
+// video, corrupt or truncated data, over VideoReadLimits), has no frames, or
+// frames change size.
 std::vector<cv::Mat> ReadVideoFrames(const std::string& path);
 
-// Writes RGB CV_8UC3 frames as a video file (.mp4: 'mp4v', .avi: 'MJPG') or,
-// when `path` has no video extension, as a folder of PNGs 00000.png, 00001.png,
+// Writes RGB CV_8UC3 frames as a video file (.mp4: 'mp4v', .avi: 'MJPG',
+// through FfmpegVideoWriter: fixed quantiser 2, odd sizes padded) or, when
+// `path` has no video extension, as a folder of PNGs 00000.png, 00001.png,
 // ... (lossless). Throws InputError.
 void WriteVideoFrames(const std::string& path,
                       const std::vector<cv::Mat>& frames,

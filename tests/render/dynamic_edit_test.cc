@@ -5,12 +5,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <string>
 
 #include "apps/cli/edit_args.h"
+#include "geometry/image_io.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/status.h"
@@ -135,12 +135,11 @@ TEST(DynamicEdit, ThreeDModeMatchesTrueVehicleMasksIncludingOcclusion) {
     for (int t : {0, 12, 24}) {
       cv::Mat truth;
       test_scene::TrueInstanceMask(scene, t, &truth);
-      cv::Mat row, bgr;
+      cv::Mat row;
       cv::hconcat(
           std::vector<cv::Mat>{r3.frames[t].rgb, r2.frames[t].rgb, truth}, row);
-      cv::cvtColor(row, bgr, cv::COLOR_RGB2BGR);
-      cv::imwrite(
-          std::string(dump) + "/edit_frame" + std::to_string(t) + ".png", bgr);
+      WriteImageRgb(
+          std::string(dump) + "/edit_frame" + std::to_string(t) + ".png", row);
     }
   }
   const auto iou3 = VehicleIoUs(scene, r3);

@@ -1,0 +1,310 @@
+#include "render/video/ffmpeg_decode.h"
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/display.h>
+#include <libavutil/imgutils.h>
+#include <libswscale/swscale.h>
+}
+
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <mutex>
+#include <opencv2/imgproc.hpp>
+
+#include "geometry/util/status.h"
+#include "render/video/ffmpeg_log.h"
+
+namespace geodrive {
+namespace {
+
+std::string AvError(int code) {
+  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
+  av_strerror(code, buf, sizeof(buf));
+  return buf;
+}
+
+// The libavformat/libavcodec error in words, with the library's own last
+// message when it logged one (e.g. "error while decoding MB 3 4").
+std::string Detail(int code) {
+  std::string s = AvError(code);
+  const std::string logged = TakeFfmpegLogMessage();
+  if (!logged.empty()) s += "; " + logged;
+  return s;
+}
+
+struct Decoder {
+  AVFormatContext* fmt = nullptr;
+  AVCodecContext* codec = nullptr;
+  AVPacket* packet = nullptr;
+  AVFrame* frame = nullptr;
+  AVFrame* bgr = nullptr;  // swscale's output, 32-byte aligned as OpenCV's
+  SwsContext* sws = nullptr;
+  int stream = -1;
+  int rotation = 0;  // clockwise degrees to apply: 0, 90, 180, 270
+  int64_t frame_bytes = 0;
+  ~Decoder() {
+    if (sws) sws_freeContext(sws);
+    if (bgr) av_frame_free(&bgr);
+    if (frame) av_frame_free(&frame);
+    if (packet) av_packet_free(&packet);
+    if (codec) avcodec_free_context(&codec);
+    if (fmt) avformat_close_input(&fmt);
+  }
+};
+
+void CheckFrameSize(const std::string& path, int64_t width, int64_t height) {
+  GEODRIVE_CHECK_INPUT(width > 0 && height > 0, path,
+                       ": the video header declares frames of ", width, "x",
+                       height, " pixels");
+  GEODRIVE_CHECK_INPUT(width <= VideoReadLimits::kMaxSide &&
+                           height <= VideoReadLimits::kMaxSide &&
+                           width * height <= VideoReadLimits::kMaxPixels,
+                       path, ": video frames of ", width, "x", height,
+                       " pixels are over the reader's limit (",
+                       VideoReadLimits::kMaxSide, " pixels per side, ",
+                       VideoReadLimits::kMaxPixels, " pixels)");
+}
+
+// Opens the container (file protocol only, no external references) and
+// refuses what is not MP4/MOV, AVI or Matroska/WebM.
+void OpenContainer(const std::string& path, Decoder* d) {
+  AVDictionary* options = nullptr;
+  av_dict_set(&options, "protocol_whitelist", "file", 0);
+  const std::string url = "file:" + path;
+  const int r = avformat_open_input(&d->fmt, url.c_str(), nullptr, &options);
+  av_dict_free(&options);
+  GEODRIVE_CHECK_INPUT(r >= 0, path,
+                       ": not a readable video (libavformat: ", Detail(r), ")");
+  const std::string name = d->fmt->iformat->name;
+  const bool known = name.rfind("mov,", 0) == 0 || name == "avi" ||
+                     name.rfind("matroska", 0) == 0;
+  GEODRIVE_CHECK_INPUT(known, path, ": not a video container this reader ",
+                       "accepts (found '", name,
+                       "'; expected MP4/MOV, AVI or Matroska/WebM)");
+}
+
+// Finds the video stream and checks its declared size, frame count and index
+// before any frame is decoded.
+void FindVideoStream(const std::string& path, Decoder* d) {
+  AVFormatContext* fmt = d->fmt;
+  for (unsigned i = 0; i < fmt->nb_streams; ++i) {
+    const AVCodecParameters* par = fmt->streams[i]->codecpar;
+    if (par->codec_type == AVMEDIA_TYPE_VIDEO && par->width != 0)
+      CheckFrameSize(path, par->width, par->height);
+  }
+  // Decoders opened while probing stay within the same pixel limit.
+  std::vector<AVDictionary*> options(fmt->nb_streams, nullptr);
+  for (AVDictionary*& o : options) {
+    av_dict_set_int(&o, "max_pixels", VideoReadLimits::kMaxPixels, 0);
+    av_dict_set(&o, "threads", "1", 0);
+  }
+  const int r = avformat_find_stream_info(fmt, options.data());
+  for (AVDictionary*& o : options) av_dict_free(&o);
+  GEODRIVE_CHECK_INPUT(r >= 0, path,
+                       ": not a readable video (libavformat: ", Detail(r), ")");
+  d->stream = av_find_best_stream(fmt, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
+  GEODRIVE_CHECK_INPUT(d->stream >= 0, path, ": has no video stream");
+  AVStream* st = fmt->streams[d->stream];
+  CheckFrameSize(path, st->codecpar->width, st->codecpar->height);
+  d->frame_bytes = int64_t{3} * st->codecpar->width * st->codecpar->height;
+  GEODRIVE_CHECK_INPUT(
+      st->nb_frames <= VideoReadLimits::kMaxDecodedBytes / d->frame_bytes, path,
+      ": ", st->nb_frames, " frames of ", st->codecpar->width, "x",
+      st->codecpar->height, " are over the reader's limit of ",
+      VideoReadLimits::kMaxDecodedBytes >> 30, " GiB of decoded frames");
+  // A file cut short: its own index points past the end.
+  const int64_t file_size = fmt->pb ? avio_size(fmt->pb) : -1;
+  const int entries = avformat_index_get_entries_count(st);
+  if (file_size > 0 && entries > 0) {
+    const AVIndexEntry* last = avformat_index_get_entry(st, entries - 1);
+    GEODRIVE_CHECK_INPUT(last->pos + last->size <= file_size, path,
+                         ": truncated video (its index lists data up to byte ",
+                         last->pos + last->size, ", the file has ", file_size,
+                         ")");
+  }
+  // OpenCV's rotation: the display matrix's angle, counter-clockwise.
+  const uint8_t* matrix =
+      av_stream_get_side_data(st, AV_PKT_DATA_DISPLAYMATRIX, nullptr);
+  if (matrix != nullptr) {
+    const double angle =
+        av_display_rotation_get(reinterpret_cast<const int32_t*>(matrix));
+    if (std::isfinite(angle)) {
+      int rotation = -static_cast<int>(std::lround(angle));
+      rotation = ((rotation % 360) + 360) % 360;
+      if (rotation % 90 == 0) d->rotation = rotation;
+    }
+  }
+}
+
+void OpenDecoder(const std::string& path, Decoder* d) {
+  const AVCodecParameters* par = d->fmt->streams[d->stream]->codecpar;
+  const AVCodec* decoder = avcodec_find_decoder(par->codec_id);
+  GEODRIVE_CHECK_INPUT(decoder != nullptr, path, ": no decoder for its '",
+                       avcodec_get_name(par->codec_id), "' video");
+  d->codec = avcodec_alloc_context3(decoder);
+  GEODRIVE_CHECK_INPUT(d->codec != nullptr, path, ": out of memory");
+  int r = avcodec_parameters_to_context(d->codec, par);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": bad codec parameters (", Detail(r),
+                       ")");
+  // One thread: the same frames on any machine. Errors the decoder can detect
+  // stop the decode instead of being concealed.
+  d->codec->thread_count = 1;
+  d->codec->max_pixels = VideoReadLimits::kMaxPixels;
+  d->codec->err_recognition |= AV_EF_EXPLODE;
+  r = avcodec_open2(d->codec, decoder, nullptr);
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the '", decoder->name,
+                       "' decoder (", Detail(r), ")");
+  d->packet = av_packet_alloc();
+  d->frame = av_frame_alloc();
+  d->bgr = av_frame_alloc();
+  GEODRIVE_CHECK_INPUT(d->packet && d->frame && d->bgr, path,
+                       ": out of memory");
+}
+
+// True when every plane of `f` holds `width` pixels per row, i.e. swscale may
+// read that far.
+bool RowsHold(const AVFrame* f, int width) {
+  int need[4] = {0, 0, 0, 0};
+  if (av_image_fill_linesizes(need, static_cast<AVPixelFormat>(f->format),
+                              width) < 0) {
+    return false;
+  }
+  for (int p = 0; p < 4; ++p) {
+    if (need[p] > 0 && (f->data[p] == nullptr || f->linesize[p] < need[p]))
+      return false;
+  }
+  return true;
+}
+
+// The decoded frame as RGB, converted as OpenCV's CvCapture_FFMPEG does: at
+// the coded size when the frame's rows hold it (the SIMD paths of swscale
+// depend on the width), into av_frame_get_buffer(32) storage, BGR, then RGB.
+cv::Mat ConvertFrame(const std::string& path, Decoder* d) {
+  const AVFrame* f = d->frame;
+  int bw = f->width, bh = f->height;
+  if (d->codec->coded_width >= f->width &&
+      d->codec->coded_height >= f->height &&
+      d->codec->coded_width <= f->width + 64 &&
+      d->codec->coded_height <= f->height + 64 &&
+      RowsHold(f, d->codec->coded_width)) {
+    bw = d->codec->coded_width;
+    bh = d->codec->coded_height;
+  }
+  if (d->bgr->width != bw || d->bgr->height != bh) {
+    av_frame_unref(d->bgr);
+    d->bgr->format = AV_PIX_FMT_BGR24;
+    d->bgr->width = bw;
+    d->bgr->height = bh;
+    GEODRIVE_CHECK_INPUT(av_frame_get_buffer(d->bgr, 32) >= 0, path,
+                         ": out of memory for a ", bw, "x", bh, " frame");
+  }
+  d->sws = sws_getCachedContext(
+      d->sws, bw, bh, static_cast<AVPixelFormat>(f->format), bw, bh,
+      AV_PIX_FMT_BGR24, SWS_BICUBIC, nullptr, nullptr, nullptr);
+  if (d->sws == nullptr) {
+    const char* name =
+        av_get_pix_fmt_name(static_cast<AVPixelFormat>(f->format));
+    ThrowInputError(path, "cannot convert its '", name ? name : "unknown",
+                    "' pixels to RGB");
+  }
+  sws_scale(d->sws, f->data, f->linesize, 0, f->height, d->bgr->data,
+            d->bgr->linesize);
+  const cv::Mat bgr(f->height, f->width, CV_8UC3, d->bgr->data[0],
+                    static_cast<size_t>(d->bgr->linesize[0]));
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  if (d->rotation == 90) {
+    cv::rotate(rgb, rgb, cv::ROTATE_90_CLOCKWISE);
+  } else if (d->rotation == 180) {
+    cv::rotate(rgb, rgb, cv::ROTATE_180);
+  } else if (d->rotation == 270) {
+    cv::rotate(rgb, rgb, cv::ROTATE_90_COUNTERCLOCKWISE);
+  }
+  return rgb;
+}
+
+// Takes every frame the decoder has ready.
+void ReceiveFrames(const std::string& path,
+                   Decoder* d,
+                   std::vector<cv::Mat>* frames) {
+  while (true) {
+    const int r = avcodec_receive_frame(d->codec, d->frame);
+    if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return;
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data at frame ",
+                         frames->size(), " (", Detail(r), ")");
+    GEODRIVE_CHECK_INPUT(d->frame->decode_error_flags == 0 &&
+                             !(d->frame->flags & AV_FRAME_FLAG_CORRUPT),
+                         path, ": corrupt video data at frame ", frames->size(),
+                         " (the decoder concealed errors)");
+    const AVFrame* f = d->frame;
+    CheckFrameSize(path, f->width, f->height);
+    if (!frames->empty()) {
+      const cv::Mat& first = frames->front();
+      const bool swapped = d->rotation == 90 || d->rotation == 270;
+      const int w = swapped ? first.rows : first.cols;
+      const int h = swapped ? first.cols : first.rows;
+      GEODRIVE_CHECK_INPUT(f->width == w && f->height == h, path, ": frame ",
+                           frames->size(), " is ", f->width, "x", f->height,
+                           " but frame 0 is ", w, "x", h);
+    }
+    const int64_t bytes = int64_t{3} * f->width * f->height;
+    GEODRIVE_CHECK_INPUT(
+        static_cast<int64_t>(frames->size() + 1) <=
+            VideoReadLimits::kMaxDecodedBytes / bytes,
+        path, ": more than ", frames->size(), " frames of ", f->width, "x",
+        f->height, " are over the reader's limit of ",
+        VideoReadLimits::kMaxDecodedBytes >> 30, " GiB of decoded frames");
+    frames->push_back(ConvertFrame(path, d));
+    av_frame_unref(d->frame);
+  }
+}
+
+}  // namespace
+
+std::vector<cv::Mat> DecodeVideoFileRgb(const std::string& path) {
+  InstallFfmpegLogCapture();
+  TakeFfmpegLogMessage();  // forget what an earlier call left
+  Decoder d;
+  OpenContainer(path, &d);
+  FindVideoStream(path, &d);
+  OpenDecoder(path, &d);
+  std::vector<cv::Mat> frames;
+  while (true) {
+    int r = av_read_frame(d.fmt, d.packet);
+    if (r == AVERROR_EOF) break;
+    GEODRIVE_CHECK_INPUT(r >= 0, path,
+                         ": truncated or unreadable video data after frame ",
+                         frames.size(), " (", Detail(r), ")");
+    if (d.packet->stream_index != d.stream) {
+      av_packet_unref(d.packet);
+      continue;
+    }
+    const bool corrupt = (d.packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
+    r = avcodec_send_packet(d.codec, d.packet);
+    if (r == AVERROR(EAGAIN)) {  // frames first, then the same packet again
+      ReceiveFrames(path, &d, &frames);
+      r = avcodec_send_packet(d.codec, d.packet);
+    }
+    av_packet_unref(d.packet);
+    GEODRIVE_CHECK_INPUT(!corrupt, path, ": corrupt video packet after frame ",
+                         frames.size());
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data after frame ",
+                         frames.size(), " (", Detail(r), ")");
+    ReceiveFrames(path, &d, &frames);
+  }
+  GEODRIVE_CHECK_INPUT(d.fmt->pb == nullptr || d.fmt->pb->error == 0, path,
+                       ": read error (", Detail(d.fmt->pb->error), ")");
+  const int r = avcodec_send_packet(d.codec, nullptr);  // drain
+  GEODRIVE_CHECK_INPUT(r >= 0 || r == AVERROR_EOF, path,
+                       ": corrupt video data at the end (", Detail(r), ")");
+  ReceiveFrames(path, &d, &frames);
+  GEODRIVE_CHECK_INPUT(!frames.empty(), path,
+                       ": empty video (no frame could be decoded)");
+  return frames;
+}
+
+}  // namespace geodrive
