@@ -169,6 +169,23 @@ CommandRunner Setup(CLI::App& app) {
   sources.push_back("auto");
   app.add_option("--geometry", o.geometry, source_help)
       ->check(CLI::IsMember(sources));
+  app.add_option("--lidar-window", o.lidar_dense_window,
+                 "lidar-dense geometry: the sweeps projected into frame 0: "
+                 "causal (up to frame 0, what a car has then; default), clip "
+                 "(the whole clip, denser) or explicit (0.5 s before to 1.5 s "
+                 "after frame 0)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, LidarWindow>{
+              {"causal", LidarWindow::kCausal},
+              {"clip", LidarWindow::kClip},
+              {"explicit", LidarWindow::kExplicit}},
+          CLI::ignore_case))
+      ->capture_default_str();
+  app.add_option("--lidar-dense-width", o.lidar_dense_width,
+                 "lidar-dense geometry: width (px) of the completed frame-0 "
+                 "depth (the frame-0 camera scaled to it)")
+      ->check(CLI::Range(16, 16384))
+      ->capture_default_str();
   app.add_option("--threads", o.threads, "Clips processed in parallel (1..256)")
       ->check(ThreadCountValidator() & CLI::PositiveNumber)
       ->capture_default_str();

@@ -129,6 +129,12 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   j["max_depth_m"] = max_depth_m;
   j["splat_radius_px"] = splat_radius_px;
   j["lidar_window_s"] = {lidar_window_before_s, lidar_window_after_s};
+  // Only for lidar-dense, so that the other sources' option hashes (and
+  // their pairs on resume) stay as they were.
+  if (SceneSourceName() == "lidar-dense") {
+    j["lidar_dense_window"] = ToString(lidar_dense_window);
+    j["lidar_dense_width"] = lidar_dense_width;
+  }
   return j.dump();
 }
 

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "dataset/drive_clip.h"
+#include "dataset/scene_source.h"
 #include "geometry/camera.h"
 #include "render/presets.h"
 
@@ -93,6 +94,11 @@ struct BuildDatasetOptions {
   // LiDAR geometry source: sweeps within [t0 - before, t0 + after] (s) are
   // aggregated.
   double lidar_window_before_s = 0.5, lidar_window_after_s = 1.5;
+  // lidar-dense geometry: which sweeps (causal: up to frame 0, the default;
+  // clip: the whole clip; explicit: the window above) and the width of the
+  // completed frame-0 depth (dataset/scene_source.h).
+  LidarWindow lidar_dense_window = LidarWindow::kCausal;
+  int lidar_dense_width = 800;
   // MonST3R geometry: refine the poses by reprojection over static pixels
   // (paper eq. 3) before rendering; meta.json reports the RMS before/after.
   bool refine_poses = false;

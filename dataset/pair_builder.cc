@@ -201,6 +201,8 @@ ConditionScene BuildClipScene(const DriveClip& clip,
   so.max_depth_m = opt.max_depth_m;
   so.lidar_window_before_s = opt.lidar_window_before_s;
   so.lidar_window_after_s = opt.lidar_window_after_s;
+  so.dense_window = opt.lidar_dense_window;
+  so.dense_width = opt.lidar_dense_width;
   so.refine_poses = opt.refine_poses;
   ConditionScene scene = source->Build(in, so);
   GEODRIVE_CHECK_INPUT(scene.trajectory.size() == clip.frames.size(), clip.id,
@@ -334,6 +336,11 @@ PairMeta MakePairMeta(const DriveClip& clip,
     meta.quality.scale_inlier_fraction = *scene.scale.inlier_fraction;
   meta.quality.reprojection_rms_px_before = scene.reprojection_rms_px_before;
   meta.quality.reprojection_rms_px_after = scene.reprojection_rms_px_after;
+  if (scene.completion) {
+    meta.quality.supported_fraction = scene.completion->supported_fraction;
+    meta.quality.coverage_of_supported =
+        scene.completion->coverage_of_supported;
+  }
   meta.pose_units = scene.metric() ? "metres" : "monst3r";
   meta.world_from_cam = scene.trajectory.world_from_cam;
   meta.intrinsics = scene.CameraAt(opt.width, opt.height, opt.resize_mode);

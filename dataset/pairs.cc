@@ -88,6 +88,10 @@ std::string PairMetaToJson(const PairMeta& m) {
     q["reprojection_rms_px_before"] = *m.quality.reprojection_rms_px_before;
   if (m.quality.reprojection_rms_px_after)
     q["reprojection_rms_px_after"] = *m.quality.reprojection_rms_px_after;
+  if (m.quality.supported_fraction)
+    q["supported_fraction"] = *m.quality.supported_fraction;
+  if (m.quality.coverage_of_supported)
+    q["coverage_of_supported"] = *m.quality.coverage_of_supported;
   if (m.quality.scale_inlier_fraction)
     q["scale_inlier_fraction"] = *m.quality.scale_inlier_fraction;
   json psnr = json::array();
@@ -155,6 +159,9 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
         OptionalNumber(q, "reprojection_rms_px_before");
     m.quality.reprojection_rms_px_after =
         OptionalNumber(q, "reprojection_rms_px_after");
+    m.quality.supported_fraction = OptionalNumber(q, "supported_fraction");
+    m.quality.coverage_of_supported =
+        OptionalNumber(q, "coverage_of_supported");
     m.quality.scale_inlier_fraction =
         OptionalNumber(q, "scale_inlier_fraction");
     if (q.contains("psnr_static")) {

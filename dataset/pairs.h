@@ -35,6 +35,11 @@ struct PairQuality {
   // refinement (paper eq. 3); absent when the refinement did not run.
   std::optional<double> reprojection_rms_px_before;
   std::optional<double> reprojection_rms_px_after;
+  // Frame-0 depth completion (lidar-dense): the fraction of the image the
+  // LiDAR supports (below the envelope of its returns) and the fraction of
+  // that area with a completed depth.
+  std::optional<double> supported_fraction;
+  std::optional<double> coverage_of_supported;
   // Inlier fraction of the LiDAR scale fit; absent when there was none.
   std::optional<double> scale_inlier_fraction;
   // Condition vs GT PSNR (dB) over the static rendered pixels per frame;
