@@ -425,3 +425,70 @@ TEST_F(FrontEnds, TheFirstErrorInFileOrderWins) {
 
 }  // namespace
 }  // namespace geodrive
+
+namespace geodrive {
+namespace {
+
+// Reference resolution and the token indices run on several threads above
+// 8,192 rows (blocks of 4,096): dangling references and duplicate tokens in a
+// big table still give the error a serial pass gives (the first row, the first
+// table).
+TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
+  const std::string base =
+      test::SharedFixtureDir("nuscenes_json_big", [](const std::string& dir) {
+        SyntheticDatasetOptions o;
+        o.num_scenes = 2;
+        o.scene_duration_s = 40.0;
+        o.tables_only = true;
+        o.radars = true;
+        o.cameras = {"CAM_FRONT", "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT",
+                     "CAM_BACK",  "CAM_BACK_LEFT",  "CAM_BACK_RIGHT"};
+        WriteSyntheticDataset(o, dir);
+      });
+  namespace fs = std::filesystem;
+  const std::string root = test::MakeTempDir("nuscenes_json_big_errors");
+  fs::copy(base, root, fs::copy_options::recursive);
+  const std::string dir = root + "/v1.0-mini/";
+  auto read = [&](const std::string& name) {
+    std::ifstream in(dir + name + ".json");
+    return json::parse(in);
+  };
+  auto write = [&](const std::string& name, const json& table) {
+    std::ofstream(dir + name + ".json") << table.dump(0);
+  };
+  const json sample_data = read("sample_data"), ego_pose = read("ego_pose");
+  ASSERT_GT(sample_data.size(), 3 * 4096u);  // four blocks of rows
+  NuscenesOptions options;
+  options.dataroot = root;
+  const size_t n = sample_data.size();
+  // Dangling references at the end of block 1 and the start of block 2: a
+  // thread that takes block 2 finds its error first, the earlier one wins.
+  json broken = sample_data;
+  broken[8200]["ego_pose_token"] = "0123456789abcdef0123456789abcdef";
+  broken[8000]["prev"] = "fedcba9876543210fedcba9876543210";
+  write("sample_data", broken);
+  std::string reference = Reference(options);
+  EXPECT_NE(reference.find(sample_data[8000]["token"].get<std::string>()),
+            std::string::npos)
+      << reference;
+  for (int threads : {2, 3}) {
+    EXPECT_EQ(Fast(options, threads, size_t{1} << 20), reference) << threads;
+  }
+  // Duplicate tokens in sample_data and in ego_pose: ego_pose comes first in
+  // table order.
+  broken = sample_data;
+  broken[n - 5]["token"] = sample_data[n - 100]["token"];
+  write("sample_data", broken);
+  json poses = ego_pose;
+  poses[poses.size() - 3]["token"] = ego_pose[poses.size() - 2]["token"];
+  write("ego_pose", poses);
+  reference = Reference(options);
+  EXPECT_NE(reference.find("ego_pose.json"), std::string::npos) << reference;
+  EXPECT_NE(reference.find("duplicate"), std::string::npos) << reference;
+  for (int threads : {2, 3}) {
+    EXPECT_EQ(Fast(options, threads, size_t{1} << 20), reference) << threads;
+  }
+}
+
+}  // namespace
+}  // namespace geodrive
