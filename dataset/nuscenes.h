@@ -16,8 +16,8 @@
 // Loading parses the JSON tables with simdjson in slices of whole records, on
 // all threads (NuscenesOptions::num_threads), into compact structs (no DOM):
 // v1.0-trainval-size metadata (2.6 M sample_data and ego_pose rows, 1.9 GB)
-// loads in a few seconds within about 1 GB. The result and every error do not
-// depend on the thread count. Every bad input throws InputError naming the
+// loads in a few seconds within about 1.15 GB. The result and every error do
+// not depend on the thread count. Every bad input throws InputError naming the
 // table file and the record token.
 
 #include <Eigen/Core>

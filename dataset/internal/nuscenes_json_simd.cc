@@ -37,7 +37,8 @@
 // portable one for the tree walk and number parsing; the two costly steps --
 // the structural index (stage 1) and string unescaping -- go through the
 // runtime-dispatched kernels of libsimdjson (haswell / icelake here). A
-// -march=haswell build of the walk measured no faster on sample_data.json.
+// -march=haswell build of the walk measured no faster (ego_pose.json, 0.52
+// GB: 0.65-0.78 s of CPU either way).
 
 #include <fcntl.h>
 #include <simdjson.h>
