@@ -1,4 +1,5 @@
 // Uses the installed headers and library: composes two transforms and projects a point.
+#include <dataset/scene_source.h>
 #include <geometry/camera.h>
 #include <geometry/rigid3.h>
 #include <geodrive_version.h>
@@ -17,5 +18,8 @@ int main() {
   const Eigen::Vector2d expected(1266.0 * 0.1 / 5.0 + 816.0, 1266.0 * -0.2 / 5.0 + 491.0);
   const double err = (uv - expected).norm();
   std::printf("geodrive %s consumer: reprojection error %.3g px\n", GEODRIVE_VERSION, err);
-  return err < 1e-9 ? 0 : 1;
+  // A dataset-module call: the scene-source registry.
+  const std::vector<std::string> sources = SceneSourceNames();
+  std::printf("scene sources: %zu (first %s)\n", sources.size(), sources.front().c_str());
+  return err < 1e-9 && sources.size() >= 5 ? 0 : 1;
 }
