@@ -135,8 +135,10 @@ struct BuildDatasetSummary {
   int failed = 0;
   bool interrupted = false;  // stopped by SIGINT/SIGTERM
   std::map<std::string, int> failures_by_stage;
-  std::map<std::string, double>
-      seconds_by_stage;  // summed over clips (CPU-side wall time)
+  // Seconds per stage summed over clips: wall time under the stage's name,
+  // the worker thread's CPU time under "cpu:<stage>" (geometry's includes the
+  // LiDAR scale fit).
+  std::map<std::string, double> seconds_by_stage;
   double seconds_total = 0;
   std::string BriefReport() const;
 };
