@@ -6,10 +6,10 @@
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "geometry/image_io.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
@@ -385,8 +385,10 @@ void WriteReportPlot(const EvalReport& r, const std::string& png_path) {
   PlotCurves(canvas, cv::Rect(10, 370, 620, 340),
              "SSIM per frame, mean in blue", ssim, ssim_mean);
   PlotTrajectories(canvas, cv::Rect(650, 10, 620, 700), r);
-  GEODRIVE_CHECK_INPUT(cv::imwrite(png_path, canvas), png_path,
-                       ": cannot be written");
+  // Drawn in OpenCV's BGR order (the colours named above); written as RGB.
+  cv::Mat rgb;
+  cv::cvtColor(canvas, rgb, cv::COLOR_BGR2RGB);
+  WriteImageRgb(png_path, rgb);
 }
 
 }  // namespace

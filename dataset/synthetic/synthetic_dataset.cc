@@ -10,7 +10,6 @@
 #include <iomanip>
 #include <limits>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
@@ -1052,11 +1051,7 @@ void WriteMapMask(const fs::path& path, int location) {
 class DatasetWriter {
  public:
   DatasetWriter(const SyntheticDatasetOptions& o, const std::string& out_dir)
-      : o_(o),
-        root_(out_dir),
-        channels_(WrittenChannels(o)),
-        tok_{o.seed},
-        quality_{cv::IMWRITE_JPEG_QUALITY, o.jpeg_quality} {
+      : o_(o), root_(out_dir), channels_(WrittenChannels(o)), tok_{o.seed} {
     summary_.root = out_dir;
     summary_.version = o.version;
     summary_.num_scenes = o.num_scenes;
@@ -1108,12 +1103,10 @@ class DatasetWriter {
   const fs::path root_;
   const std::vector<std::string> channels_;
   const Tokens tok_;
-  const std::vector<int> quality_;
   LidarOptions lidar_opts_;
   Writers w_;
   SyntheticDatasetSummary summary_;
   nlohmann::ordered_json manifest_scenes_ = nlohmann::ordered_json::array();
-  std::vector<uchar> jpeg_;  // encoder output, reused
 };
 
 SyntheticDatasetSummary DatasetWriter::Write() {
@@ -1337,11 +1330,10 @@ void DatasetWriter::WriteSensorFile(const std::string& ch,
   const SyntheticWorld& world = *scene->world;
   if (IsCameraChannel(ch)) {
     const RenderedView view = world.RenderCamera(cam, global_from_sensor, t);
-    cv::Mat bgr;
-    cv::cvtColor(view.rgb, bgr, cv::COLOR_RGB2BGR);
-    if (!cv::imencode(".jpg", bgr, jpeg_, quality_))
-      ThrowInputError(path, "JPEG encoding failed");
-    WriteBytes(path, jpeg_.data(), jpeg_.size());
+    // TurboJPEG with cv::imencode's settings: the same bytes as before.
+    const std::vector<uint8_t> jpeg =
+        EncodeJpegRgb(view.rgb, o_.jpeg_quality, path);
+    WriteBytes(path, jpeg.data(), jpeg.size());
     ++summary_.num_images;
   } else if (ch == "LIDAR_TOP") {
     const LidarSweep sweep =
