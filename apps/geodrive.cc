@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   google::InitGoogleLogging(argv[0]);
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = 1;  // warnings and errors only
+#ifndef GEODRIVE_COMMANDS_BUILT_IN  // sanitizer builds: apps/CMakeLists.txt
   const std::vector<std::string> builtin_commands = {"info"};
   if (CommandLineNeedsPlugin(argc, argv, builtin_commands)) {
     try {
@@ -33,6 +34,7 @@ int main(int argc, char** argv) {
       return kExitInternal;
     }
   }
+#endif
   CliProgram program;
   program.name = "geodrive";
   program.description =

@@ -3,9 +3,10 @@
 // LibTorch's own kernels (at::upsample_bilinear2d is what PyTorch's
 // F.interpolate(mode='bilinear', align_corners=False) runs).
 //
-// Compiled only into the plugin libgeodrive-deep-metrics.so (eval/CMakeLists.txt),
-// loaded by eval/deep_metrics.cc when a deep metric is asked for: no other
-// binary links LibTorch (issue 23: it costs 0.6 s of start-up per process).
+// Compiled only into the plugin libgeodrive-deep-metrics.so
+// (eval/CMakeLists.txt), loaded by eval/deep_metrics.cc when a deep metric is
+// asked for: no other binary links LibTorch (issue 23: it costs 0.6 s of
+// start-up per process).
 
 #include <torch/script.h>
 

@@ -416,8 +416,10 @@ NpyArray DecodeData(const NpyHeader& header, std::vector<uint8_t> raw) {
 }
 
 // Throws unless `nbytes` of data are allowed and present.
-void CheckDataSize(const std::string& path, const NpyHeader& header,
-                   uint64_t nbytes, uint64_t available,
+void CheckDataSize(const std::string& path,
+                   const NpyHeader& header,
+                   uint64_t nbytes,
+                   uint64_t available,
                    const NpyReadOptions& options) {
   if (nbytes > options.max_bytes) {
     ThrowInputError(path, "array of ", nbytes, " bytes (shape ",
@@ -551,12 +553,15 @@ NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options) {
   return DecodeData(header, std::move(raw));
 }
 
-NpyHeader ParseNpyHeader(const std::string& what, const uint8_t* data,
+NpyHeader ParseNpyHeader(const std::string& what,
+                         const uint8_t* data,
                          size_t size) {
   return ParseHeaderBytes(what, data, size, size);
 }
 
-NpyArray ParseNpy(const std::string& what, const uint8_t* data, size_t size,
+NpyArray ParseNpy(const std::string& what,
+                  const uint8_t* data,
+                  size_t size,
                   const NpyReadOptions& options) {
   const NpyHeader header = ParseHeaderBytes(what, data, size, size);
   const uint64_t nbytes = CheckedByteSize(what, header.shape, header.dtype);

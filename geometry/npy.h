@@ -1,9 +1,10 @@
 #pragma once
 // NumPy .npy reading and writing (format versions 1.0, 2.0, 3.0).
 //
-// Supported dtypes: <f4 <f8 <f2 |u1 |b1 <i4 <i8 <u2 (and their big-endian '>' forms on read).
-// Arrays are returned in native (little-endian) byte order and C (row-major) order: Fortran-order
-// and big-endian files are converted on read. Every failure throws InputError naming the file.
+// Supported dtypes: <f4 <f8 <f2 |u1 |b1 <i4 <i8 <u2 (and their big-endian '>'
+// forms on read). Arrays are returned in native (little-endian) byte order and
+// C (row-major) order: Fortran-order and big-endian files are converted on
+// read. Every failure throws InputError naming the file.
 
 #include <cstdint>
 #include <string>
@@ -11,7 +12,16 @@
 
 namespace geodrive {
 
-enum class NpyDtype { kFloat32, kFloat64, kUint8, kBool, kInt32, kInt64, kUint16, kFloat16 };
+enum class NpyDtype {
+  kFloat32,
+  kFloat64,
+  kUint8,
+  kBool,
+  kInt32,
+  kInt64,
+  kUint16,
+  kFloat16
+};
 
 // Size in bytes of one element.
 size_t NpyDtypeSize(NpyDtype dtype);
@@ -63,13 +73,18 @@ NpyHeader ReadNpyHeader(const std::string& path);
 NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options = {});
 // Reads a float array of any supported numeric dtype converted to float32 (bool/uint8/... too).
 NpyArray ReadNpyAsFloat32(const std::string& path, const NpyReadOptions& options = {});
-// Any supported dtype converted to float32 (float16 exactly, through Eigen::half).
+// Any supported dtype converted to float32 (float16 exactly, through
+// Eigen::half).
 NpyArray ConvertNpyToFloat32(NpyArray array);
 
-// The same from a .npy held in memory (an .npz member, geometry/npz.h); `what` names it in
-// errors ("file.npz: depth.npy").
-NpyHeader ParseNpyHeader(const std::string& what, const uint8_t* data, size_t size);
-NpyArray ParseNpy(const std::string& what, const uint8_t* data, size_t size,
+// The same from a .npy held in memory (an .npz member, geometry/npz.h); `what`
+// names it in errors ("file.npz: depth.npy").
+NpyHeader ParseNpyHeader(const std::string& what,
+                         const uint8_t* data,
+                         size_t size);
+NpyArray ParseNpy(const std::string& what,
+                  const uint8_t* data,
+                  size_t size,
                   const NpyReadOptions& options = {});
 
 struct NpyWriteOptions {

@@ -165,8 +165,7 @@ void AddCommandsFromPlugin(const std::string& file_name,
         ": reinstall, or point GEODRIVE_PLUGIN_DIR at the matching build");
   }
   auto& registry = CommandRegistry();
-  registry.insert(registry.end(), info.commands->begin(),
-                  info.commands->end());
+  registry.insert(registry.end(), info.commands->begin(), info.commands->end());
 }
 
 }  // namespace geodrive

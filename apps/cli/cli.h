@@ -126,10 +126,11 @@ void AddCommandsFromPlugin(const std::string& file_name,
 }  // namespace geodrive
 
 // Defines the plugin's entry point (in exactly one file of the plugin).
-#define GEODRIVE_COMMAND_PLUGIN_ENTRY(version_string)                    \
-  extern "C" __attribute__((visibility("default")))                     \
-  ::geodrive::CommandPluginInfo GeodriveCommandPlugin() {               \
-    return {version_string, &::geodrive::CommandRegistry()};            \
+#define GEODRIVE_COMMAND_PLUGIN_ENTRY(version_string)                      \
+  extern "C"                                                               \
+      __attribute__((visibility("default"))) ::geodrive::CommandPluginInfo \
+      GeodriveCommandPlugin() {                                            \
+    return {version_string, &::geodrive::CommandRegistry()};               \
   }
 
 #define GEODRIVE_REGISTER_COMMAND(id, name, description, setup)        \

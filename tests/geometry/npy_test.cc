@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
-
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -21,9 +20,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const NpyDtype kAllDtypes[] = {
-    NpyDtype::kFloat32, NpyDtype::kFloat64, NpyDtype::kUint8, NpyDtype::kBool,
-    NpyDtype::kInt32,   NpyDtype::kInt64,   NpyDtype::kUint16, NpyDtype::kFloat16};
+const NpyDtype kAllDtypes[] = {NpyDtype::kFloat32, NpyDtype::kFloat64,
+                               NpyDtype::kUint8,   NpyDtype::kBool,
+                               NpyDtype::kInt32,   NpyDtype::kInt64,
+                               NpyDtype::kUint16,  NpyDtype::kFloat16};
 
 // The value pattern of npy_numpy_crosscheck.py's expected(): a function of the
 // C-order index.

@@ -1,8 +1,8 @@
 // Uses the installed headers and library: composes two transforms and projects a point.
 #include <dataset/scene_source.h>
+#include <geodrive_version.h>
 #include <geometry/camera.h>
 #include <geometry/rigid3.h>
-#include <geodrive_version.h>
 
 #include <cmath>
 #include <cstdio>
@@ -20,6 +20,7 @@ int main() {
   std::printf("geodrive %s consumer: reprojection error %.3g px\n", GEODRIVE_VERSION, err);
   // A dataset-module call: the scene-source registry.
   const std::vector<std::string> sources = SceneSourceNames();
-  std::printf("scene sources: %zu (first %s)\n", sources.size(), sources.front().c_str());
+  std::printf("scene sources: %zu (first %s)\n", sources.size(),
+              sources.front().c_str());
   return err < 1e-9 && sources.size() >= 5 ? 0 : 1;
 }
