@@ -90,7 +90,7 @@ TEST(FrameDecode, DenominatorFollowsTheOutputSize) {
 TEST(FrameDecode, FullModeGivesThePreviousPixels) {
   const std::vector<std::string> files = RealFrontFrames();
   if (files.empty())
-    GTEST_SKIP() << "no ../shared/data/real/nuscenes_scene0916";
+    FAIL() << "no real data at ../shared/data/real/nuscenes_scene0916";
   FrameDecodeOptions full;
   full.mode = FrameDecodeMode::kFull;
   for (const ResizeMode mode : {ResizeMode::kResize, ResizeMode::kCenterCrop}) {
@@ -115,7 +115,7 @@ TEST(FrameDecode, FullModeGivesThePreviousPixels) {
 TEST(FrameDecode, DctScaledIsWithin40DbOfFullDecodeOnRealFrames) {
   const std::vector<std::string> files = RealFrontFrames();
   if (files.empty())
-    GTEST_SKIP() << "no ../shared/data/real/nuscenes_scene0916";
+    FAIL() << "no real data at ../shared/data/real/nuscenes_scene0916";
   ASSERT_EQ(files.size(), 41u);
   const ImageResizeSpec spec =
       ComputeResizeSpec(1600, 900, 720, 480, ResizeMode::kResize);
@@ -143,7 +143,7 @@ TEST(FrameDecode, DctScaledIsWithin40DbOfFullDecodeOnRealFrames) {
 TEST(FrameDecode, SizeOtherThanTheCameraIsAnError) {
   const std::vector<std::string> files = RealFrontFrames();
   if (files.empty())
-    GTEST_SKIP() << "no ../shared/data/real/nuscenes_scene0916";
+    FAIL() << "no real data at ../shared/data/real/nuscenes_scene0916";
   const ImageResizeSpec spec =
       ComputeResizeSpec(1599, 900, 720, 480, ResizeMode::kResize);
   try {
