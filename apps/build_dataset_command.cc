@@ -193,9 +193,12 @@ CommandRunner Setup(CLI::App& app) {
                  "Process shard i of N (i/N), e.g. for Slurm job arrays")
       ->capture_default_str();
   app.add_option("--preset", o.preset,
-                 "paper (z-buffer) or geodrive-compat (released pipeline)")
+                 "paper (z-buffer, one pixel per point), footprint (z-buffer, "
+                 "points seen closer than at capture drawn over their "
+                 "magnified footprint) or geodrive-compat (released pipeline)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, RenderPreset>{
           {"paper", RenderPreset::kPaper},
+          {"footprint", RenderPreset::kFootprint},
           {"geodrive-compat", RenderPreset::kGeodriveCompat}}))
       ->default_str("paper");
   app.add_option("--edit-mode", o.edit_mode,

@@ -4,7 +4,8 @@
 //   --intrinsics K.txt |
 //                    --monst3r DIR) --trajectory FILE [--shift-left 3]
 //                    [--reverse]
-//                   [--mode zbuffer|soft] [--preset paper|geodrive-compat]
+//                   [--mode zbuffer|soft] [--preset
+//                   paper|footprint|geodrive-compat]
 //                   [--size 480x720]
 //                   [--fps 10] [--frames] --out DIR
 //
@@ -55,6 +56,7 @@ struct RenderArgs {
   std::optional<double> radius;
   std::optional<int> points_per_pixel;
   std::optional<double> near, far;
+  std::optional<double> max_magnification;
   bool hole_fill = false;
   TrajectoryEditOptions edits;
   bool reverse = false;
@@ -88,6 +90,8 @@ RenderOptions RenderOptionsFromArgs(const RenderArgs& a, RenderPreset preset) {
   if (a.points_per_pixel) options.points_per_pixel = *a.points_per_pixel;
   if (a.near) options.near = *a.near;
   if (a.far) options.far = *a.far;
+  if (a.max_magnification)
+    options.max_footprint_magnification = *a.max_magnification;
   options.hole_fill = a.hole_fill;
   options.num_threads = a.threads;
   if (options.mode == RenderMode::kSoft) options.output_float_rgb = true;
@@ -201,6 +205,8 @@ json RenderReport(const RenderArgs& a,
       {"far", std::isfinite(options.far) ? json(options.far) : json("inf")},
       {"radius_px", options.radius_px},
       {"radius_ndc", options.radius_ndc},
+      {"splat_size", ToString(options.splat_size)},
+      {"max_footprint_magnification", options.max_footprint_magnification},
       {"points_per_pixel", options.points_per_pixel},
       {"pixel_convention",
        options.pixel_convention == PixelConvention::kPixelCenter
@@ -541,10 +547,12 @@ CommandRunner SetupRender(CLI::App& app) {
                  "zbuffer (paper) or soft (PyTorch3D); default: the preset's")
       ->check(CLI::IsMember({"zbuffer", "soft"}));
   app.add_option("--preset", a->preset,
-                 "paper (zbuffer 480x720, 0.1 < z < 100) or geodrive-compat "
-                 "(soft 288x512, r "
-                 "0.01 NDC, K 10, x2 bilinear upsample, frame 0 = real image)")
-      ->check(CLI::IsMember({"paper", "geodrive-compat"}))
+                 "paper (zbuffer 480x720, 0.1 < z < 100), footprint (paper "
+                 "with footprint-aware splats: a point seen closer than at "
+                 "capture covers its magnified pixel, at most 3x) or "
+                 "geodrive-compat (soft 288x512, r 0.01 NDC, K 10, x2 bilinear "
+                 "upsample, frame 0 = real image)")
+      ->check(CLI::IsMember({"paper", "footprint", "geodrive-compat"}))
       ->capture_default_str();
   app.add_option("--size", a->size,
                  "Render size HxW, e.g. 480x720 (default: the preset's)");
@@ -591,6 +599,11 @@ CommandRunner SetupRender(CLI::App& app) {
          "--far", [a](double v) { a->far = v; },
          "Far depth (trajectory units, > 0 or inf; default: the preset's)")
       ->check(positive_or_inf);
+  app.add_option_function<double>(
+         "--max-magnification", [a](double v) { a->max_magnification = v; },
+         "footprint preset: the largest magnification a point is drawn at "
+         "(1..16; 1 = one pixel per point; default: the preset's, 3)")
+      ->check(CLI::Range(1.0, 16.0));
   app.add_flag("--hole-fill", a->hole_fill,
                "zbuffer: fill small holes from the nearest valid neighbour "
                "(off by default)");

@@ -10,7 +10,7 @@
 // BM_Edit3d: RenderWithDynamicEdits in 3D mode: segmentation of the five
 // vehicles in their 3D boxes, poses, then one depth test per frame over the
 // background and the moving vehicles (RenderFramesWithMovingSets; footprint
-// samples for a vehicle drawn magnified).
+// splats for a vehicle drawn magnified, render/footprint.h).
 // BM_BuildScene3d: the scene building alone.
 // BM_Edit2d: the upstream-compatible 2D mode (point deletion, static render,
 // feathered pastes). Figures and target (3D editing <= 1.3x the plain render):
@@ -98,19 +98,17 @@ void BM_BuildScene3d(benchmark::State& state) {
     DynamicEditSummary summary;
     DynamicScene d =
         BuildDynamicScene(scene.cloud, {scene.camera}, scene.cam_from_world,
-                          scene.boxes, {}, e, &summary, scene.camera.width);
+                          scene.boxes, {}, e, &summary);
     benchmark::DoNotOptimize(d.objects.data());
     drawn = 0;
     for (const DynamicObject& o : d.objects)
       for (const auto& pose : o.poses)
-        if (pose)
-          drawn +=
-              o.points_in_object.size() * pose->subsamples * pose->subsamples;
+        if (pose) drawn += o.points_in_object.size();
     background = d.NumBackgroundPoints(scene.cloud);
   }
-  // Points drawn per frame on average: background + moved object samples.
+  // Points drawn per frame on average: background + moved object points.
   state.counters["background"] = static_cast<double>(background);
-  state.counters["object_samples_per_frame"] =
+  state.counters["object_points_per_frame"] =
       static_cast<double>(drawn) / scene.cam_from_world.size();
 }
 BENCHMARK(BM_BuildScene3d)

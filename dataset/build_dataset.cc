@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -138,6 +139,50 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   return j.dump();
 }
 
+void BuildQualityTotals::Add(const PairQuality& q) {
+  ++pairs;
+  if (!q.coverage.empty()) coverage0_sum += q.coverage.front();
+  if (!q.psnr_static.empty() && q.psnr_static.front()) {
+    ++psnr0_pairs;
+    psnr0_sum += *q.psnr_static.front();
+  }
+  if (q.supported_fraction && q.coverage_of_supported) {
+    ++completion_pairs;
+    supported_sum += *q.supported_fraction;
+    coverage_of_supported_sum += *q.coverage_of_supported;
+  }
+  if (q.completion_holdout) {
+    ++holdout_pairs;
+    mae_sum += q.completion_holdout->mae_m;
+    rmse_sum += q.completion_holdout->rmse_m;
+    within_5_sum += q.completion_holdout->within_5_percent;
+    within_10_sum += q.completion_holdout->within_10_percent;
+  }
+}
+
+std::string BuildQualityTotals::BriefReport() const {
+  if (pairs == 0) return "";
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(3) << "frame 0 of " << pairs
+     << " pairs built (means): coverage " << coverage0_sum / pairs;
+  if (psnr0_pairs)
+    os << std::setprecision(1) << ", static-region PSNR "
+       << psnr0_sum / psnr0_pairs << " dB";
+  if (completion_pairs) {
+    os << std::setprecision(3) << "; LiDAR supports "
+       << supported_sum / completion_pairs << " of the image, "
+       << coverage_of_supported_sum / completion_pairs << " of it completed";
+  }
+  if (holdout_pairs) {
+    const double n = holdout_pairs;
+    os << std::setprecision(2) << "; held-out returns: MAE " << mae_sum / n
+       << " m, RMSE " << rmse_sum / n << " m, within 5 % "
+       << std::setprecision(3) << within_5_sum / n << ", within 10 % "
+       << within_10_sum / n;
+  }
+  return os.str();
+}
+
 std::string BuildDatasetSummary::BriefReport() const {
   std::ostringstream os;
   os << "pairs built " << built << ", skipped (already built) "
@@ -154,6 +199,7 @@ std::string BuildDatasetSummary::BriefReport() const {
     os << " [" << stage << ": " << n << "]";
   os << " of " << clips_total << " clips in " << seconds_total << " s";
   if (interrupted) os << " (interrupted: rerun to resume)";
+  if (quality.pairs) os << "\n" << quality.BriefReport();
   // Wall seconds, then the worker threads' CPU seconds (keys with
   // internal::kCpuStagePrefix; the scale fit's CPU is inside geometry's).
   const std::string cpu = internal::kCpuStagePrefix;
@@ -480,10 +526,12 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       const std::string tmp = opt.out + "/pairs/.tmp-" + clip_id;
       const std::string final_dir = opt.out + "/pairs/" + clip_id;
       std::string stage = "setup", error, error_log;
+      PairQuality quality;
       try {
         fs::remove_all(tmp);
         fs::create_directories(tmp);
         const PairMeta meta = BuildPair(ctx, clip_id, tmp, &local_seconds);
+        quality = meta.quality;
         stage = "commit";
         ReplaceDirectory(tmp, final_dir);
         error_log =
@@ -497,6 +545,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       std::lock_guard<std::mutex> lock(mutex);
       if (error.empty()) {
         ++summary.built;
+        summary.quality.Add(quality);
       } else {
         std::error_code ec;
         fs::remove_all(tmp, ec);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "dataset/drive_clip.h"
+#include "dataset/pairs.h"
 #include "dataset/scene_source.h"
 #include "geometry/camera.h"
 #include "render/presets.h"
@@ -117,6 +118,25 @@ struct BuildDatasetOptions {
   std::string ContentOptionsJson() const;
 };
 
+// Frame-0 figures of the pairs built in a run, averaged over the pairs that
+// have them (meta.json `quality` has them per pair).
+struct BuildQualityTotals {
+  int pairs = 0;
+  double coverage0_sum = 0;  // frame-0 condition coverage
+  int psnr0_pairs = 0;
+  double psnr0_sum = 0;  // frame-0 static-region PSNR (dB)
+  // lidar-dense: support, completion and held-out accuracy.
+  int completion_pairs = 0;
+  double supported_sum = 0, coverage_of_supported_sum = 0;
+  int holdout_pairs = 0;
+  double mae_sum = 0, rmse_sum = 0, within_5_sum = 0, within_10_sum = 0;
+
+  void Add(const PairQuality& quality);
+  // "frame 0 of 3 pairs: coverage 0.736, static-region PSNR 32.3 dB; ..."
+  // (empty when no pair was built).
+  std::string BriefReport() const;
+};
+
 struct BuildDatasetSummary {
   int clips_total = 0;  // clips in this run's list (after --clips, shard, max)
   int built = 0;        // pairs built now
@@ -140,6 +160,8 @@ struct BuildDatasetSummary {
   // LiDAR scale fit).
   std::map<std::string, double> seconds_by_stage;
   double seconds_total = 0;
+  // Frame-0 quality of the pairs built in this run.
+  BuildQualityTotals quality;
   std::string BriefReport() const;
 };
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 #include "dataset/build_dataset.h"
@@ -81,10 +82,21 @@ void WriteBuildReport(const std::string& out,
   if (fs::exists(out + "/failures.jsonl"))
     fails = ReadFailures(out + "/failures.jsonl");
   std::vector<double> coverage, scales, psnr;
+  // Frame-0 coverage per geometry source, and the first pair with a
+  // depth-completion preview (lidar-dense: before / after).
+  std::map<std::string, std::vector<double>> coverage0_by_source;
+  std::string completion_pair, completion_clip;
   for (const auto& e : entries) {
     coverage.push_back(e.mean_coverage);
     try {
       const PairMeta m = ReadPairMeta(out + "/" + e.pair_dir);
+      if (!m.quality.coverage.empty())
+        coverage0_by_source[m.geometry_source].push_back(
+            m.quality.coverage.front());
+      if (completion_pair.empty() && m.files.count("completion_preview")) {
+        completion_pair = e.pair_dir + "/" + m.files.at("completion_preview");
+        completion_clip = e.clip_id;
+      }
       if (m.scale_source == "lidar") scales.push_back(m.scale);
       for (const auto& p : m.quality.psnr_static)
         if (p) psnr.push_back(*p);
@@ -136,6 +148,20 @@ void WriteBuildReport(const std::string& out,
   os << "<h2>Quality</h2>"
      << SvgHistogram(coverage, 0, 1, 20, "mean coverage per pair") << " "
      << SvgHistogram(psnr, 5, 45, 20, "static-region PSNR per frame (dB)");
+  for (const auto& [source, values] : coverage0_by_source) {
+    os << " "
+       << SvgHistogram(values, 0, 1, 20,
+                       "frame-0 coverage per pair, --geometry " + source);
+  }
+  if (summary && summary->quality.pairs)
+    os << "<p>" << Html(summary->quality.BriefReport()) << "</p>";
+  if (!completion_pair.empty()) {
+    os << "<h2>Depth completion, before and after (" << Html(completion_clip)
+       << ", frame 0)</h2><figure><img src='" << Html(completion_pair)
+       << "'><figcaption>the frame-0 image, the LiDAR returns projected into "
+          "it, and the completed depth (colour: inverse depth, 2 m red to "
+          "80 m blue; black: none)</figcaption></figure>";
+  }
   if (!scales.empty()) {
     const double lo = *std::min_element(scales.begin(), scales.end());
     const double hi = *std::max_element(scales.begin(), scales.end());

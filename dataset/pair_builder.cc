@@ -183,11 +183,10 @@ ConditionScene BuildClipScene(const DriveClip& clip,
                               const std::string& path,
                               const BuildDatasetOptions& opt) {
   const std::string name = opt.SceneSourceName();
-  const std::unique_ptr<SceneSource> source = CreateSceneSource(name);
   SceneInputs in;
   in.clip = &clip;
   if (!images.empty()) in.clip_images = &images;
-  if (source->Traits().needs_path) {
+  if (CreateSceneSource(name)->Traits().needs_path) {
     GEODRIVE_CHECK_INPUT(!path.empty(), clip.id,
                          ": no input folder for scene "
                          "source ",
@@ -204,7 +203,7 @@ ConditionScene BuildClipScene(const DriveClip& clip,
   so.dense_window = opt.lidar_dense_window;
   so.dense_width = opt.lidar_dense_width;
   so.refine_poses = opt.refine_poses;
-  ConditionScene scene = source->Build(in, so);
+  ConditionScene scene = BuildConditionScene(name, in, so);
   GEODRIVE_CHECK_INPUT(scene.trajectory.size() == clip.frames.size(), clip.id,
                        ": scene source ", name, " gave ",
                        scene.trajectory.size(), " poses for ",
@@ -260,7 +259,7 @@ ConditionRender RenderCondition(const ConditionScene& scene,
   RenderOptions ro = PresetRenderOptions(preset);
   PinholeCamera cam_render =
       scene.CameraAt(opt.width, opt.height, opt.resize_mode);
-  if (preset == RenderPreset::kPaper) {
+  if (preset != RenderPreset::kGeodriveCompat) {  // the z-buffer presets
     ro.width = opt.width;
     ro.height = opt.height;
     ro.radius_px = opt.splat_radius_px;
@@ -341,10 +340,71 @@ PairMeta MakePairMeta(const DriveClip& clip,
     meta.quality.coverage_of_supported =
         scene.completion->coverage_of_supported;
   }
+  if (const auto& a = scene.completion_accuracy) {
+    PairQuality::HoldOut h;
+    h.held_out = a->held_out;
+    h.covered = a->covered;
+    h.mae_m = a->mae_m;
+    h.rmse_m = a->rmse_m;
+    h.within_5_percent = a->within_5_percent;
+    h.within_10_percent = a->within_10_percent;
+    meta.quality.completion_holdout = h;
+  }
   meta.pose_units = scene.metric() ? "metres" : "monst3r";
   meta.world_from_cam = scene.trajectory.world_from_cam;
   meta.intrinsics = scene.CameraAt(opt.width, opt.height, opt.resize_mode);
   return meta;
+}
+
+namespace {
+
+// Inverse depth in [1/80, 1/2] 1/m -> turbo colours; black where depth is 0.
+cv::Mat ColorizeDepth(const cv::Mat& depth) {
+  cv::Mat level(depth.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < depth.rows; ++y) {
+    const float* d = depth.ptr<float>(y);
+    uint8_t* l = level.ptr<uint8_t>(y);
+    for (int x = 0; x < depth.cols; ++x) {
+      if (!(d[x] > 0)) continue;
+      const double t = (1.0 / d[x] - 1.0 / 80) / (1.0 / 2 - 1.0 / 80);
+      l[x] = static_cast<uint8_t>(std::lround(255 * std::clamp(t, 0.0, 1.0)));
+    }
+  }
+  cv::Mat bgr, rgb;
+  cv::applyColorMap(level, bgr, cv::COLORMAP_TURBO);
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  rgb.setTo(cv::Scalar::all(0), depth <= 0);
+  return rgb;
+}
+
+cv::Mat Labelled(const cv::Mat& rgb, const std::string& label) {
+  cv::Mat tile;
+  const int w = 400;
+  const int h = std::max(1, rgb.rows * w / std::max(1, rgb.cols));
+  cv::resize(rgb, tile, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  cv::putText(tile, label, cv::Point(6, 18), cv::FONT_HERSHEY_SIMPLEX, 0.5,
+              cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  return tile;
+}
+
+}  // namespace
+
+cv::Mat CompletionPreview(const ConditionScene& scene) {
+  if (scene.completion_sparse.empty() || scene.completion_dense.empty() ||
+      scene.frame0_rgb.empty())
+    return cv::Mat();
+  // Returns drawn 3x3 (the nearest wins) so that they survive the resize.
+  cv::Mat sparse = scene.completion_sparse.clone();
+  sparse.setTo(std::numeric_limits<float>::infinity(), sparse <= 0);
+  cv::erode(sparse, sparse, cv::Mat::ones(3, 3, CV_8U));
+  sparse.setTo(0, sparse == std::numeric_limits<float>::infinity());
+  std::vector<cv::Mat> tiles = {
+      Labelled(scene.frame0_rgb, "frame 0"),
+      Labelled(ColorizeDepth(sparse), "LiDAR returns"),
+      Labelled(ColorizeDepth(scene.completion_dense), "completed depth")};
+  cv::Mat row;
+  cv::hconcat(tiles, row);
+  return row;
 }
 
 void WritePairFolder(const std::string& dir,
@@ -377,6 +437,10 @@ void WritePairFolder(const std::string& dir,
     gt_sel.push_back(gt[i]), cond_sel.push_back(cond.frames[i]);
   WritePairPng(dir + "/preview.png", MakeContactSheet(cond_sel, gt_sel, co));
   WriteBoxesJson(dir + "/boxes.json", boxes);
+  if (!cond.completion_preview.empty()) {
+    WritePairPng(dir + "/completion.png", cond.completion_preview);
+    meta->files["completion_preview"] = "completion.png";
+  }
   if (opt.export_format == PairExport::kGeodriveUpstream) {
     WriteUpstreamFrames(dir, frames, cond);
     meta->files["upstream"] = "upstream";
@@ -490,8 +554,9 @@ PairMeta BuildPair(const ClipContext& ctx,
   }
   const BoxSequences boxes = timer.Run(
       "boxes", [&] { return ClipVehicleBoxes(clip, scene.metric(), opt); });
-  const ConditionRender cond = timer.Run(
+  ConditionRender cond = timer.Run(
       "render", [&] { return RenderCondition(scene, boxes, frames.gt, opt); });
+  cond.completion_preview = CompletionPreview(scene);
   PairMeta meta = MakePairMeta(clip, scene, opt);
   if (opt.export_format == PairExport::kGeodriveUpstream && ctx.clip_index)
     meta.upstream_scene_idx = ctx.clip_index->at(clip_id);

@@ -92,6 +92,14 @@ std::string PairMetaToJson(const PairMeta& m) {
     q["supported_fraction"] = *m.quality.supported_fraction;
   if (m.quality.coverage_of_supported)
     q["coverage_of_supported"] = *m.quality.coverage_of_supported;
+  if (const auto& h = m.quality.completion_holdout) {
+    q["completion_holdout"] = {{"held_out", h->held_out},
+                               {"covered", h->covered},
+                               {"mae_m", h->mae_m},
+                               {"rmse_m", h->rmse_m},
+                               {"within_5_percent", h->within_5_percent},
+                               {"within_10_percent", h->within_10_percent}};
+  }
   if (m.quality.scale_inlier_fraction)
     q["scale_inlier_fraction"] = *m.quality.scale_inlier_fraction;
   json psnr = json::array();
@@ -162,6 +170,17 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     m.quality.supported_fraction = OptionalNumber(q, "supported_fraction");
     m.quality.coverage_of_supported =
         OptionalNumber(q, "coverage_of_supported");
+    if (q.contains("completion_holdout")) {
+      const auto& h = q.at("completion_holdout");
+      PairQuality::HoldOut v;
+      v.held_out = h.at("held_out").get<int64_t>();
+      v.covered = h.at("covered").get<int64_t>();
+      v.mae_m = h.at("mae_m").get<double>();
+      v.rmse_m = h.at("rmse_m").get<double>();
+      v.within_5_percent = h.at("within_5_percent").get<double>();
+      v.within_10_percent = h.at("within_10_percent").get<double>();
+      m.quality.completion_holdout = v;
+    }
     m.quality.scale_inlier_fraction =
         OptionalNumber(q, "scale_inlier_fraction");
     if (q.contains("psnr_static")) {

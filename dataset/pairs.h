@@ -40,6 +40,16 @@ struct PairQuality {
   // that area with a completed depth.
   std::optional<double> supported_fraction;
   std::optional<double> coverage_of_supported;
+  // Frame-0 depth completion (lidar-dense) on held-out returns of the frame-0
+  // sweep (a seeded 20 %): how many, how many the completion covered, MAE and
+  // RMSE (metres), fractions within 5 % and 10 % of the held-out depth.
+  struct HoldOut {
+    int64_t held_out = 0;
+    int64_t covered = 0;
+    double mae_m = 0, rmse_m = 0;
+    double within_5_percent = 0, within_10_percent = 0;
+  };
+  std::optional<HoldOut> completion_holdout;
   // Inlier fraction of the LiDAR scale fit; absent when there was none.
   std::optional<double> scale_inlier_fraction;
   // Condition vs GT PSNR (dB) over the static rendered pixels per frame;

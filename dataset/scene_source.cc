@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "geometry/util/status.h"
+#include "render/footprint.h"
 
 // Every source's factory, declared from the registry list.
 #define GEODRIVE_SCENE_SOURCE(identifier, name) \
@@ -108,7 +109,14 @@ ConditionScene BuildConditionScene(const std::string& name,
                        traits.help, ")");
   GEODRIVE_CHECK_INPUT(!traits.needs_clip || inputs.clip, "scene source ", name,
                        " needs a dataset clip (", traits.help, ")");
-  return source->Build(inputs, options);
+  ConditionScene scene = source->Build(inputs, options);
+  // Capture footprints for footprint-aware splats (render/footprint.h): the
+  // cloud as seen by the frame-0 camera on the source's own grid, unless the
+  // source set its own.
+  if (scene.has_camera && !scene.cloud.HasFootprints())
+    SetCaptureFootprints(scene.camera, scene.scene_from_cam0.Inverse(),
+                         &scene.cloud);
+  return scene;
 }
 
 }  // namespace geodrive

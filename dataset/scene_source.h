@@ -110,8 +110,13 @@ struct ConditionScene {
   // refinement (paper eq. 3), when the source ran it.
   std::optional<double> reprojection_rms_px_before;
   std::optional<double> reprojection_rms_px_after;
-  // Frame-0 depth completion (lidar-dense): support and coverage.
+  // Frame-0 depth completion (lidar-dense): support and coverage, the
+  // accuracy on held-out returns of the frame-0 sweep, and the depth before
+  // (the projected returns) and after completion on `camera`'s grid (CV_32F,
+  // metres, 0 = none) for previews.
   std::optional<DepthCompletionReport> completion;
+  std::optional<DepthCompletionAccuracy> completion_accuracy;
+  cv::Mat completion_sparse, completion_dense;
 
   bool metric() const { return units == "metres"; }
   // The frame-0 camera for an output of width x height, resized (and

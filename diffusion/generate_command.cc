@@ -438,7 +438,7 @@ CommandRunner SetupGenerate(CLI::App& sub) {
   g->add_option("--limit", a->limit, "batch mode: at most N pairs (0: all)")
       ->capture_default_str();
   g->add_option("--preset", a->preset,
-                "condition render preset: paper or geodrive-compat")
+                "condition render preset: paper, footprint or geodrive-compat")
       ->capture_default_str();
   g->add_option("--steps", a->steps, "inference steps")->capture_default_str();
   g->add_option("--seed", a->seed, "noise seed")->capture_default_str();

@@ -1,5 +1,6 @@
 #include "geometry/point_cloud.h"
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -20,6 +21,12 @@ void PointCloud::Check(const std::string& what) const {
   check(instance_ids.size(), "instance_ids");
   check(intensity.size(), "intensity");
   check(ring.size(), "ring");
+  check(footprints.size(), "footprints");
+  for (size_t i = 0; i < footprints.size(); ++i) {
+    GEODRIVE_CHECK_INPUT(std::isfinite(footprints[i]) && footprints[i] >= 0,
+                         what, ": point ", i, " has footprint ", footprints[i],
+                         " (must be finite and >= 0)");
+  }
   // Branch-free scan first (a float is finite iff its exponent bits are not
   // all ones; the loop vectorises), then locate the first bad point for the
   // message.
@@ -74,6 +81,7 @@ void PointCloud::Append(const PointCloud& other) {
   AppendAttr(instance_ids, other.instance_ids, na, nb);
   AppendAttr(intensity, other.intensity, na, nb);
   AppendAttr(ring, other.ring, na, nb);
+  AppendAttr(footprints, other.footprints, na, nb);
   positions.insert(positions.end(), other.positions.begin(), other.positions.end());
 }
 
@@ -88,6 +96,7 @@ PointCloud PointCloud::Select(const std::vector<size_t>& indices) const {
   SelectAttr(instance_ids, indices, out.instance_ids);
   SelectAttr(intensity, indices, out.intensity);
   SelectAttr(ring, indices, out.ring);
+  SelectAttr(footprints, indices, out.footprints);
   return out;
 }
 

@@ -21,6 +21,11 @@ struct PointCloud {
   std::vector<int32_t> instance_ids;    // -1 = background / static
   std::vector<float> intensity;         // LiDAR return intensity (nuScenes: 0..255)
   std::vector<float> ring;              // LiDAR ring index (nuScenes: 0..31)
+  // Capture footprint: the side, in the cloud's units, of the pixel that saw
+  // the point (capture depth / focal length in pixels; 0 = unknown).
+  // Footprint-aware splats (render/footprint.h) draw a point seen from closer
+  // than at capture over the area it covers.
+  std::vector<float> footprints;
 
   size_t size() const { return positions.size(); }
   bool empty() const { return positions.empty(); }
@@ -29,6 +34,7 @@ struct PointCloud {
   bool HasInstanceIds() const { return !instance_ids.empty(); }
   bool HasIntensity() const { return !intensity.empty(); }
   bool HasRing() const { return !ring.empty(); }
+  bool HasFootprints() const { return !footprints.empty(); }
 
   void Reserve(size_t n);
   // Throws InputError naming `what` if an attribute's size differs from size() or a position is

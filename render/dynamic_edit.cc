@@ -243,8 +243,10 @@ void DynamicEditOptions::Check() const {
                        "dynamic edit options: depth gaps must be >= 0");
   GEODRIVE_CHECK_INPUT(min_object_points >= 1,
                        "dynamic edit options: min_object_points must be >= 1");
-  GEODRIVE_CHECK_INPUT(max_subsamples >= 1 && max_subsamples <= 8,
-                       "dynamic edit options: max_subsamples must be in 1..8");
+  GEODRIVE_CHECK_INPUT(
+      std::isfinite(max_magnification) && max_magnification >= 1 &&
+          max_magnification <= 16,
+      "dynamic edit options: max_magnification must be in [1, 16]");
   GEODRIVE_CHECK_INPUT(num_threads >= 0,
                        "dynamic edit options: num_threads must be >= 0");
 }

@@ -122,12 +122,11 @@ struct DynamicEditOptions {
   int min_object_points = 10;
   // Close range: an object drawn larger than in frame 0 (approached, scaled up,
   // or rendered at a higher resolution than camera 0) would show gaps through
-  // which the background bleeds. Each of its points is then drawn as k x k
-  // samples spread over the point's frame-0 pixel footprint, k =
-  // ceil(magnification - 0.05) capped at this value (1 = off). Magnification =
-  // the object's pixel density ratio (z0 / zt) * (ft / f0) * max(scale), at the
-  // object's centroid.
-  int max_subsamples = 3;
+  // which the background bleeds. Its points carry their frame-0 pixel
+  // footprints and are drawn as footprint splats (render/footprint.h, the
+  // renderer's one mechanism): magnification L = (z0 / zt) (ft / f0)
+  // max(scale) per point, capped at this value (1 = off: one pixel per point).
+  double max_magnification = 3.0;
   // Threads for the per-frame renders (0 = OpenMP default); the output does not
   // depend on it.
   int num_threads = 0;
@@ -177,7 +176,6 @@ struct DynamicEditSummary {
 struct ObjectPose {
   Rigid3d world_from_object;
   Eigen::Vector3d scale = Eigen::Vector3d::Ones();
-  int subsamples = 1;  // k: each point drawn as k x k footprint samples
 };
 
 // A rigid object of the 3D edit.
@@ -186,11 +184,9 @@ struct DynamicObject {
   std::string source_id;  // the instance whose points these are
   int32_t render_id =
       0;  // written to instance_ids / the per-pixel instance image
-  PointCloud points_in_object;  // colours and positions in the object frame
-  // Per point: the frame-0 pixel footprint's edge vectors (camera-0 x and y
-  // pixel steps at the point's depth), in the object frame. Empty when no
-  // frame draws the object with subsamples > 1.
-  std::vector<Eigen::Vector3f> footprint_u, footprint_v;
+  // Colours and positions in the object frame; footprints (frame-0 pixel
+  // footprints, render/footprint.h) unless max_magnification is 1.
+  PointCloud points_in_object;
   std::vector<std::optional<ObjectPose>>
       poses;  // per frame; nullopt = not drawn
 };
@@ -216,16 +212,15 @@ struct DynamicScene {
 // Builds the 3D edit: segmentation, poses, removals and insertions. `cameras`
 // holds one camera for all frames or one per pose (frame 0's is used for
 // segmentation); `boxes.num_frames` must equal cam_from_world.size(). Notes and
-// applied edits go to `summary` (required). `output_width` (0 = the cameras'
-// own width) is the width frames will be rendered at (for the magnification).
+// applied edits go to `summary` (required). The objects' points carry their
+// frame-0 footprints; the renderer computes each frame's magnification.
 DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
                                const std::vector<PinholeCamera>& cameras,
                                const std::vector<Rigid3d>& cam_from_world,
                                const BoxSequences& boxes,
                                const std::vector<ObjectEdit>& edits,
                                const DynamicEditOptions& options,
-                               DynamicEditSummary* summary,
-                               int output_width = 0);
+                               DynamicEditSummary* summary);
 
 // ---- 2D building blocks (upstream-compatible).
 

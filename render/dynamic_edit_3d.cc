@@ -16,6 +16,7 @@
 
 #include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
+#include "render/footprint.h"
 #include "render/internal/dynamic_edit_internal.h"
 
 namespace geodrive {
@@ -115,32 +116,6 @@ std::vector<std::optional<ObjectPose>> TrackPoses(
   return poses;
 }
 
-// The object's points in its own frame with each point drawn as k x k
-// samples over its frame-0 pixel footprint (k = 1: the points themselves).
-PointCloud FootprintSamples(const DynamicObject& object, int k) {
-  const PointCloud& src = object.points_in_object;
-  const size_t n = src.size();
-  if (k <= 1 || object.footprint_u.size() != n) return src;
-  const size_t kk = static_cast<size_t>(k) * k;
-  float offsets[16];
-  for (int a = 0; a < k; ++a) offsets[a] = (a + 0.5f) / k - 0.5f;
-  PointCloud out;
-  out.positions.resize(n * kk);
-  if (src.HasColors()) out.colors.resize(n * kk);
-  for (size_t i = 0; i < n; ++i) {
-    Eigen::Vector3f* o = out.positions.data() + i * kk;
-    for (int b = 0; b < k; ++b) {
-      const Eigen::Vector3f row =
-          src.positions[i] + offsets[b] * object.footprint_v[i];
-      for (int a = 0; a < k; ++a)
-        *o++ = row + offsets[a] * object.footprint_u[i];
-    }
-    if (src.HasColors())
-      std::fill_n(out.colors.begin() + i * kk, kk, src.colors[i]);
-  }
-  return out;
-}
-
 // world_from_object with the object's scale: x_world = R (s .* x) + t.
 Matrix3x4d AffineOf(const ObjectPose& pose) {
   Matrix3x4d a;
@@ -151,64 +126,23 @@ Matrix3x4d AffineOf(const ObjectPose& pose) {
   return a;
 }
 
-// The scene's objects as moving point sets (their points are moved out): one
-// set per object and footprint sampling k it uses, in object order (so depth
-// ties keep object order; an object never shows two k in one frame).
+// The scene's objects as moving point sets (their points are moved out), in
+// object order (so depth ties keep object order).
 std::vector<MovingPointSet> MovingSets(DynamicScene&& scene) {
   std::vector<MovingPointSet> sets;
   for (DynamicObject& object : scene.objects) {
-    std::set<int, std::greater<int>> ks;  // k = 1 last: it takes the points
-    for (const std::optional<ObjectPose>& pose : object.poses)
-      if (pose) ks.insert(std::max(1, pose->subsamples));
-    for (int k : ks) {
-      MovingPointSet set;
-      set.points = k == 1 ? std::move(object.points_in_object)
-                          : FootprintSamples(object, k);
-      set.instance_id = object.render_id;
-      set.world_from_set.resize(scene.num_frames);
-      for (size_t f = 0;
-           f < object.poses.size() && f < static_cast<size_t>(scene.num_frames);
-           ++f) {
-        const std::optional<ObjectPose>& pose = object.poses[f];
-        if (pose && std::max(1, pose->subsamples) == k)
-          set.world_from_set[f] = AffineOf(*pose);
-      }
-      sets.push_back(std::move(set));
+    MovingPointSet set;
+    set.points = std::move(object.points_in_object);
+    set.instance_id = object.render_id;
+    set.world_from_set.resize(scene.num_frames);
+    for (size_t f = 0;
+         f < object.poses.size() && f < static_cast<size_t>(scene.num_frames);
+         ++f) {
+      if (object.poses[f]) set.world_from_set[f] = AffineOf(*object.poses[f]);
     }
+    sets.push_back(std::move(set));
   }
   return sets;
-}
-
-// Sets ObjectPose::subsamples from the object's magnification in each frame.
-void SetSubsamples(const std::vector<PinholeCamera>& cameras,
-                   const std::vector<Rigid3d>& cam_from_world,
-                   const Rigid3d& world_from_object0,
-                   int output_width,
-                   int max_subsamples,
-                   DynamicObject* object) {
-  if (object->points_in_object.empty()) return;
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3f& p : object->points_in_object.positions)
-    centroid += p.cast<double>();
-  centroid /= double(object->points_in_object.size());
-  const PinholeCamera& camera0 = CameraOf(cameras, 0);
-  const double z0 = (cam_from_world[0] * (world_from_object0 * centroid)).z();
-  if (!(z0 > 0)) return;
-  for (size_t f = 0; f < object->poses.size(); ++f) {
-    if (!object->poses[f]) continue;
-    ObjectPose& pose = *object->poses[f];
-    const Eigen::Vector3d w =
-        pose.world_from_object * pose.scale.cwiseProduct(centroid);
-    const double zt = (cam_from_world[f] * w).z();
-    const PinholeCamera& camera = CameraOf(cameras, f);
-    const double ft =
-        camera.fx *
-        (output_width > 0 ? double(output_width) / camera.width : 1.0);
-    if (!(zt > 0)) continue;
-    const double m = (z0 / zt) * (ft / camera0.fx) * pose.scale.maxCoeff();
-    pose.subsamples = std::clamp(static_cast<int>(std::ceil(m - 0.05)), 1,
-                                 std::max(1, max_subsamples));
-  }
 }
 
 // Appends the objects drawn in `frame`, mapped to the world, to `out` (which
@@ -218,18 +152,25 @@ void AppendObjects(const DynamicScene& scene, int frame, PointCloud* out) {
     if (frame >= static_cast<int>(object.poses.size()) || !object.poses[frame])
       continue;
     const ObjectPose& pose = *object.poses[frame];
-    const PointCloud samples = FootprintSamples(object, pose.subsamples);
+    const PointCloud& points = object.points_in_object;
     const Matrix3x4d a = AffineOf(pose);
     const Eigen::Matrix3f linear = a.leftCols<3>().cast<float>();
     const Eigen::Vector3f t = a.col(3).cast<float>();
     const bool colors = out->HasColors() || out->empty();
-    for (const Eigen::Vector3f& p : samples.positions)
+    for (const Eigen::Vector3f& p : points.positions)
       out->positions.push_back(linear * p + t);
-    if (colors && samples.HasColors())
-      out->colors.insert(out->colors.end(), samples.colors.begin(),
-                         samples.colors.end());
-    out->instance_ids.insert(out->instance_ids.end(), samples.size(),
+    if (colors && points.HasColors())
+      out->colors.insert(out->colors.end(), points.colors.begin(),
+                         points.colors.end());
+    out->instance_ids.insert(out->instance_ids.end(), points.size(),
                              object.render_id);
+    // Footprints grow with the largest axis scale (as the renderer does for
+    // moving sets); none = 0 (one pixel).
+    const float scale =
+        static_cast<float>(a.leftCols<3>().colwise().norm().maxCoeff());
+    for (size_t i = 0; i < points.size(); ++i)
+      out->footprints.push_back(
+          points.HasFootprints() ? points.footprints[i] * scale : 0.0f);
   }
 }
 
@@ -240,7 +181,6 @@ struct SceneInputs {
   const std::vector<Rigid3d>& cam_from_world;
   const BoxSequences& boxes;
   const DynamicEditOptions& options;
-  int output_width;  // 0 = the cameras' own width
 };
 
 // The object of segment `seg` (its points in the object frame: the frame-0
@@ -265,45 +205,21 @@ DynamicObject MakeObject(const PointCloud& cloud_in_world,
   return object;
 }
 
-// Subsampling per frame, then the footprints, only for objects drawn with
-// k > 1 somewhere (footprint of point i: camera-0 pixel steps at its
-// camera-0 depth, in the object frame).
-void SetSubsamplesAndFootprints(const SceneInputs& in,
-                                const Segment& seg,
-                                DynamicObject* object) {
-  const PinholeCamera& camera0 = CameraOf(in.cameras, 0);
-  const Rigid3d& pose0 = in.cam_from_world[0];
+// The points' frame-0 pixel footprints (render/footprint.h: camera-0 depth /
+// sqrt(fx fy)), unless magnification is off.
+void SetFootprints(const SceneInputs& in,
+                   const Segment& seg,
+                   DynamicObject* object) {
+  if (!(in.options.max_magnification > 1)) return;
   const Rigid3d world_from_object0 =
       seg.box0 ? seg.box0->WorldFromBox() : Rigid3d();
-  SetSubsamples(in.cameras, in.cam_from_world, world_from_object0,
-                in.output_width, in.options.max_subsamples, object);
-  bool magnified = false;
-  for (const std::optional<ObjectPose>& pose : object->poses)
-    magnified = magnified || (pose && pose->subsamples > 1);
-  if (!magnified) return;
-  const Eigen::Matrix3d world_r =
-      world_from_object0.rotation.toRotationMatrix();
-  const Eigen::Matrix3d cam_r = pose0.rotation.toRotationMatrix();
-  // object_from_cam0 rotation: R_o^T R_c^T.
-  const Eigen::Matrix3d r = world_r.transpose() * cam_r.transpose();
-  // Camera-0 z of x_world = R_o x + t_o: (R_c.row(2) R_o) x + R_c.row(2) t_o
-  // + t_c.z.
-  const Eigen::Vector3d zrow = (cam_r.row(2) * world_r).transpose();
-  const double tz =
-      cam_r.row(2).dot(world_from_object0.translation) + pose0.translation.z();
-  const size_t m = object->points_in_object.size();
-  object->footprint_u.resize(m);
-  object->footprint_v.resize(m);
-  for (size_t i = 0; i < m; ++i) {
-    const double z =
-        zrow.dot(object->points_in_object.positions[i].cast<double>()) + tz;
-    object->footprint_u[i] = (r.col(0) * (z / camera0.fx)).cast<float>();
-    object->footprint_v[i] = (r.col(1) * (z / camera0.fy)).cast<float>();
-  }
+  SetCaptureFootprints(CameraOf(in.cameras, 0),
+                       in.cam_from_world[0] * world_from_object0,
+                       &object->points_in_object);
 }
 
 // The object of `seg` (render id: the next in `scene`) following `track`:
-// its poses (notes go to `summary`), subsamples and footprints.
+// its poses (notes go to `summary`) and footprints.
 DynamicObject MakeMovingObject(const SceneInputs& in,
                                const Segment& seg,
                                const Track& track,
@@ -318,7 +234,7 @@ DynamicObject MakeMovingObject(const SceneInputs& in,
   object.poses =
       TrackPoses(seg, track, id, in.boxes, in.cameras, in.cam_from_world, plane,
                  in.options.min_box_area_px, summary, frames_shown);
-  SetSubsamplesAndFootprints(in, seg, &object);
+  SetFootprints(in, seg, &object);
   return object;
 }
 
@@ -415,18 +331,19 @@ DynamicEditResult Render3d(const PointCloud& cloud_in_world,
                                            : (render_options.num_threads > 0
                                                   ? render_options.num_threads
                                                   : omp_get_max_threads());
+  ro.max_footprint_magnification = options.max_magnification;
   DynamicEditOptions build_options = options;
   build_options.num_threads = ro.num_threads;
   DynamicScene scene =
       BuildDynamicScene(cloud_in_world, cameras, cam_from_world, boxes, edits,
-                        build_options, &result.summary, render_options.width);
+                        build_options, &result.summary);
   for (const DynamicObject& o : scene.objects)
     result.render_ids.push_back(o.id);
   const std::vector<size_t> hidden = std::move(scene.hidden);
   // One depth test per frame over the background and that frame's moved
   // objects, so objects and background occlude each other correctly. Each
-  // object is packed once in its own frame (once per footprint sampling k
-  // it uses) and only projected per frame.
+  // object is packed once in its own frame and only projected per frame; its
+  // footprints make it a footprint splat where it is magnified.
   RenderResult rendered;
   // Background pixels get instance -1: the input cloud's own instance ids
   // (if any) are dropped when the instance map is asked for.
@@ -457,6 +374,8 @@ PointCloud DynamicScene::ComposeFrame(const PointCloud& cloud_in_world,
     }
     out.positions.push_back(cloud_in_world.positions[i]);
     if (colors) out.colors.push_back(cloud_in_world.colors[i]);
+    out.footprints.push_back(
+        cloud_in_world.HasFootprints() ? cloud_in_world.footprints[i] : 0.0f);
   }
   out.instance_ids.assign(out.size(), -1);
   AppendObjects(*this, frame, &out);
@@ -469,8 +388,7 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
                                const BoxSequences& boxes,
                                const std::vector<ObjectEdit>& edits,
                                const DynamicEditOptions& options,
-                               DynamicEditSummary* summary,
-                               int output_width) {
+                               DynamicEditSummary* summary) {
   options.Check();
   CheckClip(cameras, cam_from_world, boxes);
   cloud_in_world.Check("dynamic edit: point cloud");
@@ -483,8 +401,7 @@ DynamicScene BuildDynamicScene(const PointCloud& cloud_in_world,
 
   DynamicScene scene;
   scene.num_frames = num_frames;
-  const SceneInputs in{cloud_in_world, cameras, cam_from_world,
-                       boxes,          options, output_width};
+  const SceneInputs in{cloud_in_world, cameras, cam_from_world, boxes, options};
 
   // Frame-0 tracks of the instances.
   std::vector<Track> tracks;

@@ -8,25 +8,38 @@
 namespace geodrive {
 
 std::string ToString(RenderPreset preset) {
-  return preset == RenderPreset::kPaper ? "paper" : "geodrive-compat";
+  switch (preset) {
+    case RenderPreset::kPaper:
+      return "paper";
+    case RenderPreset::kGeodriveCompat:
+      return "geodrive-compat";
+    case RenderPreset::kFootprint:
+      return "footprint";
+  }
+  return "paper";
 }
 
 RenderPreset ParseRenderPreset(const std::string& text) {
   if (text == "paper") return RenderPreset::kPaper;
   if (text == "geodrive-compat") return RenderPreset::kGeodriveCompat;
+  if (text == "footprint") return RenderPreset::kFootprint;
   ThrowInputError("render preset", "'", text,
-                  "' is not one of paper, geodrive-compat");
+                  "' is not one of paper, geodrive-compat, footprint");
 }
 
 RenderOptions PresetRenderOptions(RenderPreset preset) {
   RenderOptions o;
-  if (preset == RenderPreset::kPaper) {
+  if (preset == RenderPreset::kPaper || preset == RenderPreset::kFootprint) {
     o.mode = RenderMode::kZBuffer;
     o.width = 720;
     o.height = 480;
     o.near = 0.1;
     o.far = 100.0;
     o.radius_px = 0;
+    if (preset == RenderPreset::kFootprint) {
+      o.splat_size = SplatSize::kFootprint;
+      o.max_footprint_magnification = 3.0;
+    }
     return o;
   }
   o.mode = RenderMode::kSoft;

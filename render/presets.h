@@ -18,9 +18,13 @@
 
 namespace geodrive {
 
-enum class RenderPreset { kPaper, kGeodriveCompat };
+//  - footprint: the paper's z-buffer with footprint-aware splats
+//    (render/footprint.h): a point seen from closer than at capture covers its
+//    magnified capture pixel (at most 3x), so approached surfaces keep no
+//    holes; seen as at capture or farther, one pixel per point as in paper.
+enum class RenderPreset { kPaper, kGeodriveCompat, kFootprint };
 std::string ToString(RenderPreset preset);
-// "paper" or "geodrive-compat"; throws InputError otherwise.
+// "paper", "geodrive-compat" or "footprint"; throws InputError otherwise.
 RenderPreset ParseRenderPreset(const std::string& text);
 
 // Renderer options of a preset.

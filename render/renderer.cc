@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "geometry/util/status.h"
+#include "render/footprint.h"
 #include "render/internal/renderer_internal.h"
 
 namespace geodrive {
@@ -47,8 +48,17 @@ void PackedCloud::Reserve(size_t n, const RenderOptions& options) {
 
 void PackedCloud::Assign(size_t offset,
                          const PointCloud& cloud,
-                         const RenderOptions& options) {
+                         const RenderOptions& options,
+                         bool with_footprints) {
   const size_t m = cloud.size(), n = offset + m;
+  if ((with_footprints && cloud.HasFootprints()) || !footprint.empty()) {
+    footprint.resize(n, 0.0f);
+    if (with_footprints && cloud.HasFootprints())
+      std::copy(cloud.footprints.begin(), cloud.footprints.end(),
+                footprint.begin() + offset);
+    else
+      std::fill(footprint.begin() + offset, footprint.end(), 0.0f);
+  }
   x.resize(n);
   y.resize(n);
   z.resize(n);
@@ -193,6 +203,16 @@ RenderMode ParseRenderMode(const std::string& text) {
   ThrowInputError("render mode", "'", text, "' is not one of zbuffer, soft");
 }
 
+std::string ToString(SplatSize size) {
+  return size == SplatSize::kFixed ? "fixed" : "footprint";
+}
+
+SplatSize ParseSplatSize(const std::string& text) {
+  if (text == "fixed") return SplatSize::kFixed;
+  if (text == "footprint") return SplatSize::kFootprint;
+  ThrowInputError("splat size", "'", text, "' is not one of fixed, footprint");
+}
+
 void RenderOptions::Check() const {
   GEODRIVE_CHECK_INPUT(width > 0 && height > 0 && width <= kMaxImageSide &&
                            height <= kMaxImageSide,
@@ -204,6 +224,14 @@ void RenderOptions::Check() const {
   GEODRIVE_CHECK_INPUT(
       std::isfinite(radius_px) && radius_px >= 0 && radius_px <= 256,
       "render options: radius_px ", radius_px, " must be in [0, 256]");
+  GEODRIVE_CHECK_INPUT(std::isfinite(max_footprint_magnification) &&
+                           max_footprint_magnification >= 1 &&
+                           max_footprint_magnification <= 16,
+                       "render options: max_footprint_magnification ",
+                       max_footprint_magnification, " must be in [1, 16]");
+  GEODRIVE_CHECK_INPUT(
+      splat_size == SplatSize::kFixed || mode == RenderMode::kZBuffer,
+      "render options: footprint splats need the zbuffer mode");
   GEODRIVE_CHECK_INPUT(
       std::isfinite(radius_ndc) && radius_ndc > 0 && radius_ndc <= 2,
       "render options: radius_ndc ", radius_ndc, " must be in (0, 2]");
@@ -408,13 +436,24 @@ void RenderCheckedScene(const PointCloud& static_cloud,
                        " static and moving points (at most 2^31 - 1 "
                        "supported)");
   // Packed once: static points, then each set's points in its own frame.
+  // Footprints: the static cloud's with SplatSize::kFootprint (frame 0's
+  // camera as the capture when it has none), every set's that has them.
+  const bool zbuffer = options.mode == RenderMode::kZBuffer;
+  const bool static_footprints =
+      zbuffer && options.splat_size == SplatSize::kFootprint;
   PackedCloud packed;
   packed.Reserve(total, options);
-  packed.Assign(0, static_cloud, options);
+  if (static_footprints && !static_cloud.HasFootprints()) {
+    PointCloud with_footprints = static_cloud;
+    SetCaptureFootprints(frame_cameras[0], cam_from_world[0], &with_footprints);
+    packed.Assign(0, with_footprints, options, true);
+  } else {
+    packed.Assign(0, static_cloud, options, static_footprints);
+  }
   std::vector<int> offsets(sets.size());
   for (size_t k = 0; k < sets.size(); ++k) {
     offsets[k] = static_cast<int>(packed.size());
-    packed.Assign(offsets[k], sets[k].points, options);
+    packed.Assign(offsets[k], sets[k].points, options, zbuffer);
     if (options.output_instance) {
       std::fill(packed.instance.begin() + offsets[k],
                 packed.instance.begin() + offsets[k] + sets[k].points.size(),
@@ -440,15 +479,23 @@ void RenderCheckedScene(const PointCloud& static_cloud,
       ranges.clear();
       const FrameProjector camera_proj(frame_cameras[f], cam_r, cam_t, options);
       for (const std::pair<int, int>& run : static_runs)
-        ranges.push_back(ProjectedRange{run.first, run.second, camera_proj});
+        ranges.push_back(ProjectedRange{run.first, run.second, camera_proj,
+                                        static_footprints ? 1.0f : 0.0f});
       for (size_t k = 0; k < sets.size(); ++k) {
         const std::optional<Matrix3x4d>& a = sets[k].world_from_set[f];
         if (!a || sets[k].points.empty()) continue;
         // cam_from_set = cam_from_world * world_from_set.
+        // A set's footprints grow with its largest axis scale.
+        const float footprint_scale =
+            zbuffer && sets[k].points.HasFootprints()
+                ? static_cast<float>(
+                      a->leftCols<3>().colwise().norm().maxCoeff())
+                : 0.0f;
         ranges.push_back(ProjectedRange{
             offsets[k], offsets[k] + static_cast<int>(sets[k].points.size()),
             FrameProjector(frame_cameras[f], cam_r * a->leftCols<3>(),
-                           cam_r * a->col(3) + cam_t, options)});
+                           cam_r * a->col(3) + cam_t, options),
+            footprint_scale});
       }
       RenderOne(packed, ranges, options, &scratch, &result.frames[f]);
     }

@@ -52,6 +52,20 @@ std::string ToString(RenderMode mode);
 // Parses "zbuffer" or "soft"; throws InputError otherwise.
 RenderMode ParseRenderMode(const std::string& text);
 
+// How large a z-buffer splat is (render/footprint.h).
+enum class SplatSize {
+  // Every point with `radius_px` (the paper: 0, one pixel).
+  kFixed,
+  // A point seen from closer than at capture covers its magnified capture
+  // pixel: radius from PointCloud::footprints, its depth now and the focal
+  // length now, capped at `max_footprint_magnification`; never below
+  // `radius_px`.
+  kFootprint,
+};
+std::string ToString(SplatSize size);
+// Parses "fixed" or "footprint"; throws InputError otherwise.
+SplatSize ParseSplatSize(const std::string& text);
+
 struct RenderOptions {
   RenderMode mode = RenderMode::kZBuffer;
   // Output size. Cameras whose size differs are rescaled to it (ResizeCamera,
@@ -66,6 +80,15 @@ struct RenderOptions {
   // kZBuffer: splat radius in pixels (0 = one pixel; otherwise every pixel
   // whose centre lies within the radius of the projection, i.e. a disk).
   double radius_px = 0.0;
+  // kZBuffer: fixed radius or capture footprints. With kFootprint, a static
+  // cloud without footprints is taken as captured by frame 0's camera (so
+  // frame 0 draws one pixel per point). Points of moving point sets that
+  // carry footprints use them in either setting (the dynamic editor's
+  // magnified objects).
+  SplatSize splat_size = SplatSize::kFixed;
+  // Footprint splats: the largest magnification drawn (radius cap
+  // max * sqrt(2) / 2 pixels), in [1, 16]; 1 = one pixel per point.
+  double max_footprint_magnification = 3.0;
   // kSoft: splat radius in NDC units (short side spans 2) and points kept per
   // pixel (1..32).
   double radius_ndc = 0.01;

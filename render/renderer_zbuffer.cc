@@ -3,9 +3,11 @@
 // mask / index, and hole filling. Scalar and AVX2 kernels give the same bytes.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
+#include "render/footprint.h"
 #include "render/internal/renderer_internal.h"
 #include "render/renderer.h"
 
@@ -261,6 +263,63 @@ __attribute__((target("avx2"))) int64_t SplatDisksAvx2(
 }
 #endif
 
+// Footprint splats of one projected block (render/footprint.h): point k
+// with footprint s = fp[k] * scale gets radius max(r_min, FootprintRadius2^½);
+// radius 0 is the single pixel that contains the projection (as SplatPoints),
+// otherwise a disk (as SplatDisksScalar). Scalar: magnified points are few
+// next to the one-pixel majority.
+int64_t SplatFootprints(const ProjectedBlock& blk,
+                        int m,
+                        int base,
+                        const float* fp,
+                        float scale,
+                        float focal,
+                        float r_min,
+                        float max_magnification,
+                        int w,
+                        int h,
+                        uint64_t* kb) {
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  int64_t projected = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!blk.ok[k]) continue;
+    const float u = blk.u[k], v = blk.v[k], z = blk.z[k];
+    const uint64_t key = PackKey(z, base + k);
+    const float r2 =
+        std::max(r_min * r_min,
+                 FootprintRadius2(fp[k] * scale, focal, z, max_magnification));
+    if (r2 <= 0) {
+      const float fu = u + 0.5f, fv = v + 0.5f;
+      if (!(fu >= 0 && fu < fw && fv >= 0 && fv < fh)) continue;
+      uint64_t* slot =
+          kb + static_cast<size_t>(fv) * w + static_cast<size_t>(fu);
+      *slot = std::min(*slot, key);
+      ++projected;
+      continue;
+    }
+    const float r = std::sqrt(r2);
+    if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
+    const int j0 = std::max(0, CeilI(v - r));
+    const int j1 = std::min(h - 1, FloorI(v + r));
+    const int i0 = std::max(0, CeilI(u - r));
+    const int i1 = std::min(w - 1, FloorI(u + r));
+    uint32_t hit = 0;
+    for (int j = j0; j <= j1; ++j) {
+      const float dy = static_cast<float>(j) - v;
+      const float dy2 = dy * dy;
+      uint64_t* row = kb + static_cast<size_t>(j) * w;
+      for (int c = i0; c <= i1; ++c) {
+        const float dx = static_cast<float>(c) - u;
+        const uint32_t in = (dx * dx + dy2) <= r2;
+        row[c] = std::min(row[c], in ? key : kEmptyKey);
+        hit |= in;
+      }
+    }
+    projected += hit;
+  }
+  return projected;
+}
+
 int64_t SplatDisks(const ProjectedBlock& blk,
                    int m,
                    int base,
@@ -400,9 +459,19 @@ void RenderZBuffer(const PackedCloud& soa,
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   int64_t projected = 0;
   const float r = static_cast<float>(options.radius_px);
+  const float max_magnification =
+      static_cast<float>(options.max_footprint_magnification);
   for (const ProjectedRange& range : ranges) {
+    const bool footprints = range.footprint_scale > 0 && !soa.footprint.empty();
     for (int base = range.begin; base < range.end; base += kBlock) {
       const int m = std::min(kBlock, range.end - base);
+      if (footprints) {
+        ProjectBlock(soa, base, m, range.proj, &blk);
+        projected += SplatFootprints(blk, m, base, soa.footprint.data() + base,
+                                     range.footprint_scale, range.proj.focal, r,
+                                     max_magnification, w, h, kb);
+        continue;
+      }
       if (r <= 0) {
         int k0 = 0;
 #ifdef GEODRIVE_HAVE_AVX2_PATH

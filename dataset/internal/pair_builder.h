@@ -57,7 +57,16 @@ struct ConditionRender {
   std::vector<cv::Mat> native_frames;
   std::vector<double> coverage;
   std::vector<std::optional<double>> psnr_static;
+  // lidar-dense: frame 0 before and after the depth completion (image |
+  // projected returns | completed depth, CompletionPreview); empty otherwise.
+  cv::Mat completion_preview;
 };
+
+// The before/after picture of a frame-0 depth completion: the frame-0 image,
+// the projected LiDAR returns and the completed depth (colour = inverse depth,
+// turbo, 2 m .. 80 m; black = none), each 400 px wide, labelled. Empty when
+// the scene has no completion.
+cv::Mat CompletionPreview(const ConditionScene& scene);
 
 // Reads the clip's images at the output size (dataset/frame_decode.h: a
 // DCT-scaled decode, then a resize), and at full size too with `keep_full`;

@@ -24,6 +24,8 @@ namespace {
 // A LiDAR sweep takes 50 ms (20 Hz): the sweep in progress at frame 0 ends
 // (and is stamped) up to that much after the camera's timestamp.
 constexpr int64_t kSweepPeriodUs = 50000;
+// Seed of the held-out returns (the same in every run: deterministic metas).
+constexpr uint64_t kHoldOutSeed = 2026;
 
 // [lo, hi] in microseconds for the window policy.
 std::pair<int64_t, int64_t> WindowOf(const DriveClip& clip,
@@ -41,6 +43,32 @@ std::pair<int64_t, int64_t> WindowOf(const DriveClip& clip,
               t0 + static_cast<int64_t>(options.lidar_window_after_s * 1e6)};
   }
   return {lo, t0 + kSweepPeriodUs};
+}
+
+// Accuracy of the completion on the frame-0 sweep (the keyframe sweep of
+// frame 0, or the last sweep at or before it): a seeded 20 % of its returns
+// that project into the camera held out, the rest completed (KITTI depth
+// completion's measures). Nullopt when frame 0 has no sweep with returns in
+// the image.
+std::optional<DepthCompletionAccuracy> FrameZeroHoldOut(
+    const DriveClip& clip,
+    const PinholeCamera& camera,
+    const SceneSourceOptions& options) {
+  const DriveFrame& f0 = clip.frames.front();
+  const std::vector<LidarSweepInfo>& sweeps = clip.lidar->Sweeps();
+  std::optional<int64_t> ts;
+  if (f0.keyframe_sweep && *f0.keyframe_sweep < sweeps.size()) {
+    ts = sweeps[*f0.keyframe_sweep].timestamp_us;
+  } else {
+    for (const LidarSweepInfo& s : sweeps)
+      if (s.timestamp_us <= f0.timestamp_us) ts = s.timestamp_us;
+  }
+  if (!ts) return std::nullopt;
+  std::vector<int64_t> times;
+  const PointCloud sweep = AggregateStaticSweeps(clip, *ts, *ts, &times);
+  const cv::Mat sparse = SparseDepthImage(sweep.positions, camera);
+  if (cv::countNonZero(sparse) < 10) return std::nullopt;
+  return HoldOutAccuracy(sparse, 0.2, kHoldOutSeed, options.completion);
 }
 
 class LidarDenseSceneSource : public SceneSource {
@@ -106,6 +134,9 @@ class LidarDenseSceneSource : public SceneSource {
     scene.scale.source = "ego";
     scene.scale.report = "metric from LiDAR and ego poses";
     scene.completion = report;
+    scene.completion_accuracy = FrameZeroHoldOut(clip, camera, options);
+    scene.completion_sparse = sparse;
+    scene.completion_dense = dense;
     scene.description = "LiDAR of " + clip.id + ", " +
                         ToString(options.dense_window) +
                         " window, completed: " + report.BriefReport();

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -40,6 +41,7 @@ struct FrameProjector {
   float r[9];
   float t[3];
   float fx, fy, cx, cy;
+  float focal;  // sqrt(fx fy), for footprint splats
   float near, far;
 
   FrameProjector(const PinholeCamera& camera,
@@ -64,6 +66,7 @@ struct FrameProjector {
         options.pixel_convention == PixelConvention::kPixelCenter ? 0.5 : 0.0;
     fx = static_cast<float>(camera.fx);
     fy = static_cast<float>(camera.fy);
+    focal = static_cast<float>(std::sqrt(camera.fx * camera.fy));
     cx = static_cast<float>(camera.cx - offset);
     cy = static_cast<float>(camera.cy - offset);
     near = static_cast<float>(std::max(options.near, 0.0));
@@ -77,6 +80,9 @@ struct FrameProjector {
 struct ProjectedRange {
   int begin = 0, end = 0;
   FrameProjector proj;
+  // Footprint splats: > 0 multiplies the packed footprints (a moving set's
+  // largest axis scale; 1 for the static cloud); 0 = fixed radius.
+  float footprint_scale = 0;
 };
 
 // Points are projected in blocks into small arrays (a loop the compiler
@@ -128,16 +134,19 @@ struct PackedCloud {
   std::vector<float> colors01;    // soft: RGB in [0, 1]
   std::vector<int32_t> instance;  // output_instance: id per point (-1 = none)
                                   // + sentinel -1 at [n]
+  std::vector<float> footprint;   // capture footprints (0 = none); empty when
+                                  // no packed cloud carries any
   size_t size() const { return x.size(); }
 
   // Capacity for n points (avoids re-allocating when sets are appended).
   void Reserve(size_t n, const RenderOptions& options);
 
   // Makes points [offset, offset + cloud.size()) the given cloud's, dropping
-  // anything after them.
+  // anything after them; its footprints are packed when `with_footprints`.
   void Assign(size_t offset,
               const PointCloud& cloud,
-              const RenderOptions& options);
+              const RenderOptions& options,
+              bool with_footprints = false);
 };
 
 // Projects points [base + k0, base + n) to shifted pixel coordinates (entries

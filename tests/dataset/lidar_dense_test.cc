@@ -18,6 +18,8 @@
 #include "dataset/synthetic/synthetic_dataset.h"
 #include "dataset/synthetic/synthetic_world.h"
 #include "geometry/depth_completion.h"
+#include "geometry/image_io.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
 
@@ -259,10 +261,32 @@ TEST(LidarDenseReal, KeyframeClipsBuildWithLidarDense) {
     o.quiet = true;
     const BuildDatasetSummary s = BuildDataset(o);
     ASSERT_EQ(s.built, 3) << s.BriefReport();
+    // The summary prints the frame-0 figures of the pairs built.
+    EXPECT_EQ(s.quality.pairs, 3);
+    EXPECT_EQ(s.quality.completion_pairs, 3);
+    EXPECT_EQ(s.quality.holdout_pairs, 3);
+    EXPECT_NE(s.BriefReport().find("held-out returns: MAE"), std::string::npos)
+        << s.BriefReport();
+    // report.html: the frame-0 coverage histogram of the source and the
+    // before / after picture of one pair.
+    const std::string report = ReadFileText(out + "/report.html");
+    EXPECT_NE(report.find("frame-0 coverage per pair, --geometry lidar-dense"),
+              std::string::npos);
+    EXPECT_NE(report.find("/completion.png"), std::string::npos);
     for (const ManifestEntry& e : ReadManifest(out + "/manifest.jsonl")) {
       const PairMeta m = ReadPairMeta(out + "/" + e.pair_dir);
       ASSERT_TRUE(m.quality.supported_fraction &&
                   m.quality.coverage_of_supported);
+      // Held-out returns of the frame-0 sweep, recorded per pair (the same
+      // measure as HeldOutReturnsOfTheFrame0Sweep, whatever the window).
+      ASSERT_TRUE(m.quality.completion_holdout.has_value());
+      EXPECT_GT(m.quality.completion_holdout->held_out, 500);
+      EXPECT_GT(m.quality.completion_holdout->within_10_percent, 0.80);
+      EXPECT_LT(m.quality.completion_holdout->mae_m, 2.0);
+      ASSERT_EQ(m.files.count("completion_preview"), 1u);
+      const cv::Mat preview =
+          ReadImageRgb(out + "/" + e.pair_dir + "/completion.png");
+      EXPECT_EQ(preview.cols, 1200);
       std::printf(
           "%s window %s: frame-0 coverage %.3f, supported %.3f, "
           "%.3f of it completed, PSNR frame 0 %.1f dB\n",
@@ -277,6 +301,40 @@ TEST(LidarDenseReal, KeyframeClipsBuildWithLidarDense) {
       EXPECT_GT(m.quality.psnr_static.front().value_or(0), 25.0);
     }
   }
+}
+
+// Footprint-aware splats on the real scene: the footprint preset keeps more
+// of the approached frame-0 pointmap than the paper's one pixel per point, and
+// never less.
+TEST(LidarDenseReal, FootprintPresetCoversMoreOfTheApproachedScene) {
+  std::vector<double> coverage[2];
+  for (int k = 0; k < 2; ++k) {
+    const std::string out = test::MakeTempDir("lidar_dense_footprint");
+    BuildDatasetOptions o;
+    o.dataroot = test::RealDataPath("nuscenes_scene0916");
+    o.version = kVersion;
+    o.frames = ClipFrameSource::kKeyframes;
+    o.geometry = "lidar-dense";
+    o.preset = k == 0 ? RenderPreset::kPaper : RenderPreset::kFootprint;
+    o.clips = {"scene-0916_0006_kf"};
+    o.out = out;
+    o.quiet = true;
+    ASSERT_EQ(BuildDataset(o).built, 1);
+    coverage[k] =
+        ReadPairMeta(out + "/pairs/scene-0916_0006_kf").quality.coverage;
+  }
+  ASSERT_EQ(coverage[0].size(), coverage[1].size());
+  for (size_t t = 0; t < 8; ++t) {
+    std::printf("frame %zu coverage paper %.3f footprint %.3f\n", t,
+                coverage[0][t], coverage[1][t]);
+    EXPECT_GE(coverage[1][t], coverage[0][t]) << "frame " << t;
+  }
+  // Frame 0 is seen as captured: the same pixels.
+  EXPECT_EQ(coverage[0][0], coverage[1][0]);
+  // Measured: frames 5-7 (2.5-3.5 s on, the scene approached) 0.500 / 0.460
+  // / 0.405 -> 0.594 / 0.583 / 0.545.
+  for (size_t t = 5; t < 8; ++t)
+    EXPECT_GT(coverage[1][t], coverage[0][t] + 0.05) << "frame " << t;
 }
 
 }  // namespace

@@ -187,6 +187,60 @@ TEST(DynamicEdit, ThreeDModeMatchesTrueVehicleMasksIncludingOcclusion) {
   EXPECT_GT(sum3 / count, sum2 / count);
 }
 
+// Approached vehicles are drawn magnified: their points carry frame-0
+// footprints (render/footprint.h) and become footprint splats, the
+// renderer's one mechanism; without them (max_magnification 1) the background
+// shows through the magnified vehicles.
+TEST(DynamicEdit, MagnifiedVehiclesAreFootprintSplatsWithoutHoles) {
+  const Scene& scene = TestScene();
+  const RenderOptions ro = TestRenderOptions(scene);
+  DynamicEditOptions with;
+  DynamicEditOptions without;
+  without.max_magnification = 1;
+  DynamicEditSummary summary;
+  const DynamicScene dyn =
+      BuildDynamicScene(scene.cloud, {scene.camera}, scene.cam_from_world,
+                        scene.boxes, {}, with, &summary);
+  // Footprint of each object point: its camera-0 depth / sqrt(fx fy).
+  const Rigid3d& pose0 = scene.cam_from_world[0];
+  for (const DynamicObject& object : dyn.objects) {
+    ASSERT_EQ(object.points_in_object.footprints.size(),
+              object.points_in_object.size());
+    const Rigid3d world_from_object0 =
+        object.poses[0] ? object.poses[0]->world_from_object : Rigid3d();
+    for (size_t i = 0; i < object.points_in_object.size(); i += 97) {
+      const double z =
+          (pose0 * (world_from_object0 *
+                    object.points_in_object.positions[i].cast<double>()))
+              .z();
+      EXPECT_NEAR(object.points_in_object.footprints[i],
+                  z / std::sqrt(scene.camera.fx * scene.camera.fy), 1e-5 * z)
+          << object.id;
+    }
+  }
+  const DynamicEditResult r_with =
+      RenderWithDynamicEdits(scene.cloud, {scene.camera}, scene.cam_from_world,
+                             scene.boxes, {}, with, ro);
+  const DynamicEditResult r_without =
+      RenderWithDynamicEdits(scene.cloud, {scene.camera}, scene.cam_from_world,
+                             scene.boxes, {}, without, ro);
+  const auto iou_with = VehicleIoUs(scene, r_with);
+  const auto iou_without = VehicleIoUs(scene, r_without);
+  // v1 is approached, v4 oncoming: their last visible frame is magnified.
+  for (int k : {1, 4}) {
+    int last = -1;
+    for (size_t t = 0; t < iou_with[k].size(); ++t)
+      if (iou_with[k][t] >= 0) last = static_cast<int>(t);
+    ASSERT_GE(last, 0) << scene.vehicles[k].id;
+    std::printf("%s frame %d IoU with footprints %.3f, one pixel %.3f\n",
+                scene.vehicles[k].id.c_str(), last, iou_with[k][last],
+                iou_without[k][last]);
+    EXPECT_GE(iou_with[k][last], 0.8) << scene.vehicles[k].id;
+    EXPECT_GT(iou_with[k][last], iou_without[k][last] + 0.05)
+        << scene.vehicles[k].id;
+  }
+}
+
 TEST(DynamicEdit, ThreeDModeFromTwoDBoxesLiftsOntoTheGround) {
   const Scene& scene = TestScene();
   BoxSequences boxes2d = scene.boxes;
@@ -466,16 +520,11 @@ TEST(DynamicEdit, InsertAndMovePlaceThePointsInsideTheNewBoxes) {
         out_mov += !move_box.Contains(p, 0.05 + 1e-4);
       }
     }
-    // Each point is drawn as k x k footprint samples (k from the
-    // magnification).
-    const int k_ins = inserted.poses[t]->subsamples;
-    const int k_mov = moved.poses[t]->subsamples;
-    EXPECT_EQ(n_ins, static_cast<int>(inserted.points_in_object.size()) *
-                         k_ins * k_ins)
+    // Each point is drawn once (magnified ones as footprint splats).
+    EXPECT_EQ(n_ins, static_cast<int>(inserted.points_in_object.size()))
         << "frame " << t;
     EXPECT_EQ(out_ins, 0) << "frame " << t;
-    EXPECT_EQ(n_mov,
-              static_cast<int>(moved.points_in_object.size()) * k_mov * k_mov)
+    EXPECT_EQ(n_mov, static_cast<int>(moved.points_in_object.size()))
         << "frame " << t;
     EXPECT_EQ(out_mov, 0) << "frame " << t;
   }
