@@ -251,7 +251,8 @@ CommandRunner Setup(CLI::App& app) {
          "MonST3R confidence threshold in [0,1] (1 - 1/raw; paper tau = 0.65)")
       ->capture_default_str();
   app.add_option("--splat-radius", o.splat_radius_px,
-                 "Paper preset splat radius (output px)")
+                 "Paper preset splat radius (output px; the footprint preset "
+                 "sizes every point from its capture footprint instead)")
       ->capture_default_str();
   app.add_flag("--refine-poses", o.refine_poses,
                "MonST3R geometry: refine the poses by reprojection over static "

@@ -90,7 +90,7 @@ struct BuildDatasetOptions {
   double min_confidence = 0.65;
   double min_depth_m = 0.1, max_depth_m = 100.0;
   // Paper preset splat radius in output pixels (the 512x288 pointmap is sparser
-  // than 720x480).
+  // than 720x480); the footprint preset sizes every point from its footprint.
   double splat_radius_px = 1.0;
   // LiDAR geometry source: sweeps within [t0 - before, t0 + after] (s) are
   // aggregated.

@@ -262,7 +262,8 @@ ConditionRender RenderCondition(const ConditionScene& scene,
   if (preset != RenderPreset::kGeodriveCompat) {  // the z-buffer presets
     ro.width = opt.width;
     ro.height = opt.height;
-    ro.radius_px = opt.splat_radius_px;
+    // The footprint preset sizes every point from its footprint.
+    if (preset == RenderPreset::kPaper) ro.radius_px = opt.splat_radius_px;
     if (!scene.metric()) {  // a depth range in metres is meaningless then
       ro.near = 1e-6;
       ro.far = std::numeric_limits<double>::infinity();

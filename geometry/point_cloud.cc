@@ -22,6 +22,17 @@ void PointCloud::Check(const std::string& what) const {
   check(intensity.size(), "intensity");
   check(ring.size(), "ring");
   check(footprints.size(), "footprints");
+  check(footprint_u.size(), "footprint_u");
+  check(footprint_v.size(), "footprint_v");
+  GEODRIVE_CHECK_INPUT(
+      footprint_u.size() == footprint_v.size() &&
+          (footprint_u.empty() || !footprints.empty()),
+      what, ": footprint_u and footprint_v come together, with footprints");
+  for (size_t i = 0; i < footprint_u.size(); ++i) {
+    GEODRIVE_CHECK_INPUT(
+        footprint_u[i].allFinite() && footprint_v[i].allFinite(), what,
+        ": point ", i, " has a footprint axis that is not finite");
+  }
   for (size_t i = 0; i < footprints.size(); ++i) {
     GEODRIVE_CHECK_INPUT(std::isfinite(footprints[i]) && footprints[i] >= 0,
                          what, ": point ", i, " has footprint ", footprints[i],
@@ -82,6 +93,8 @@ void PointCloud::Append(const PointCloud& other) {
   AppendAttr(intensity, other.intensity, na, nb);
   AppendAttr(ring, other.ring, na, nb);
   AppendAttr(footprints, other.footprints, na, nb);
+  AppendAttr(footprint_u, other.footprint_u, na, nb);
+  AppendAttr(footprint_v, other.footprint_v, na, nb);
   positions.insert(positions.end(), other.positions.begin(), other.positions.end());
 }
 
@@ -97,6 +110,8 @@ PointCloud PointCloud::Select(const std::vector<size_t>& indices) const {
   SelectAttr(intensity, indices, out.intensity);
   SelectAttr(ring, indices, out.ring);
   SelectAttr(footprints, indices, out.footprints);
+  SelectAttr(footprint_u, indices, out.footprint_u);
+  SelectAttr(footprint_v, indices, out.footprint_v);
   return out;
 }
 

@@ -26,6 +26,10 @@ struct PointCloud {
   // Footprint-aware splats (render/footprint.h) draw a point seen from closer
   // than at capture over the area it covers.
   std::vector<float> footprints;
+  // Optional, with footprints: the capture pixel as a surface patch, the
+  // surface's displacement per capture pixel along x and y (in the cloud's
+  // frame; zero = unknown, then the square of side `footprints` is used).
+  std::vector<Eigen::Vector3f> footprint_u, footprint_v;
 
   size_t size() const { return positions.size(); }
   bool empty() const { return positions.empty(); }

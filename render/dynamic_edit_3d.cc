@@ -164,13 +164,21 @@ void AppendObjects(const DynamicScene& scene, int frame, PointCloud* out) {
                          points.colors.end());
     out->instance_ids.insert(out->instance_ids.end(), points.size(),
                              object.render_id);
-    // Footprints grow with the largest axis scale (as the renderer does for
-    // moving sets); none = 0 (one pixel).
+    // Footprints grow with the largest axis scale, surface axes map through
+    // the linear part (as the renderer does for moving sets); none = 0.
     const float scale =
         static_cast<float>(a.leftCols<3>().colwise().norm().maxCoeff());
-    for (size_t i = 0; i < points.size(); ++i)
+    const bool axes = !points.footprint_u.empty();
+    for (size_t i = 0; i < points.size(); ++i) {
       out->footprints.push_back(
           points.HasFootprints() ? points.footprints[i] * scale : 0.0f);
+      out->footprint_u.push_back(
+          axes ? Eigen::Vector3f(linear * points.footprint_u[i])
+               : Eigen::Vector3f::Zero());
+      out->footprint_v.push_back(
+          axes ? Eigen::Vector3f(linear * points.footprint_v[i])
+               : Eigen::Vector3f::Zero());
+    }
   }
 }
 
@@ -376,6 +384,11 @@ PointCloud DynamicScene::ComposeFrame(const PointCloud& cloud_in_world,
     if (colors) out.colors.push_back(cloud_in_world.colors[i]);
     out.footprints.push_back(
         cloud_in_world.HasFootprints() ? cloud_in_world.footprints[i] : 0.0f);
+    const bool axes = !cloud_in_world.footprint_u.empty();
+    out.footprint_u.push_back(axes ? cloud_in_world.footprint_u[i]
+                                   : Eigen::Vector3f::Zero());
+    out.footprint_v.push_back(axes ? cloud_in_world.footprint_v[i]
+                                   : Eigen::Vector3f::Zero());
   }
   out.instance_ids.assign(out.size(), -1);
   AppendObjects(*this, frame, &out);

@@ -59,6 +59,19 @@ void PackedCloud::Assign(size_t offset,
     else
       std::fill(footprint.begin() + offset, footprint.end(), 0.0f);
   }
+  const bool axes = with_footprints && !cloud.footprint_u.empty();
+  if (axes || !footprint_axes.empty()) {
+    footprint_axes.resize(6 * n, 0.0f);
+    float* out = footprint_axes.data() + 6 * offset;
+    for (size_t i = 0; i < m; ++i, out += 6) {
+      if (axes) {
+        std::copy_n(cloud.footprint_u[i].data(), 3, out);
+        std::copy_n(cloud.footprint_v[i].data(), 3, out + 3);
+      } else {
+        std::fill_n(out, 6, 0.0f);
+      }
+    }
+  }
   x.resize(n);
   y.resize(n);
   z.resize(n);
@@ -232,6 +245,11 @@ void RenderOptions::Check() const {
   GEODRIVE_CHECK_INPUT(
       splat_size == SplatSize::kFixed || mode == RenderMode::kZBuffer,
       "render options: footprint splats need the zbuffer mode");
+  GEODRIVE_CHECK_INPUT(
+      splat_size == SplatSize::kFixed || radius_px == 0,
+      "render options: footprint splats size every point from its footprint: "
+      "radius_px must be 0 (got ",
+      radius_px, ")");
   GEODRIVE_CHECK_INPUT(
       std::isfinite(radius_ndc) && radius_ndc > 0 && radius_ndc <= 2,
       "render options: radius_ndc ", radius_ndc, " must be in (0, 2]");

@@ -263,32 +263,107 @@ __attribute__((target("avx2"))) int64_t SplatDisksAvx2(
 }
 #endif
 
-// Footprint splats of one projected block (render/footprint.h): point k
-// with footprint s = fp[k] * scale gets radius max(r_min, FootprintRadius2^½);
-// radius 0 is the single pixel that contains the projection (as SplatPoints),
-// otherwise a disk (as SplatDisksScalar). Scalar: magnified points are few
+// min(key) over the pixels whose centres lie in [u - hx, u + hx] x
+// [v - hy, v + hy]; returns whether any pixel was hit.
+inline bool SplatBox(float u,
+                     float v,
+                     float hx,
+                     float hy,
+                     uint64_t key,
+                     int w,
+                     int h,
+                     uint64_t* kb) {
+  const int i0 = std::max(0, CeilI(u - hx));
+  const int i1 = std::min(w - 1, FloorI(u + hx));
+  const int j0 = std::max(0, CeilI(v - hy));
+  const int j1 = std::min(h - 1, FloorI(v + hy));
+  for (int j = j0; j <= j1; ++j) {
+    uint64_t* row = kb + static_cast<size_t>(j) * w;
+    for (int c = i0; c <= i1; ++c) row[c] = std::min(row[c], key);
+  }
+  return i0 <= i1 && j0 <= j1;
+}
+
+// min(key) over the pixels whose centres are within r of (u, v) (as
+// SplatDisksScalar); returns whether any pixel was hit.
+inline bool SplatDisk(
+    float u, float v, float r, uint64_t key, int w, int h, uint64_t* kb) {
+  const float r2 = r * r;
+  const int j0 = std::max(0, CeilI(v - r));
+  const int j1 = std::min(h - 1, FloorI(v + r));
+  const int i0 = std::max(0, CeilI(u - r));
+  const int i1 = std::min(w - 1, FloorI(u + r));
+  uint32_t hit = 0;
+  for (int j = j0; j <= j1; ++j) {
+    const float dy = static_cast<float>(j) - v;
+    const float dy2 = dy * dy;
+    uint64_t* row = kb + static_cast<size_t>(j) * w;
+    for (int c = i0; c <= i1; ++c) {
+      const float dx = static_cast<float>(c) - u;
+      const uint32_t in = (dx * dx + dy2) <= r2;
+      row[c] = std::min(row[c], in ? key : kEmptyKey);
+      hit |= in;
+    }
+  }
+  return hit != 0;
+}
+
+// Footprint splats of one projected block (render/footprint.h). Point k's
+// half-extents come from its surface axes when it has them (fp_axes[6k..6k+5]
+// not all zero: projected through the Jacobian of the projection at the
+// point), otherwise from its camera-facing footprint fp[k] * scale. Unless
+// magnified (a half-extent > 0.525) the point takes the single pixel that
+// contains its projection (as SplatPoints), or the disk of radius r_min > 0
+// (as SplatDisksScalar); magnified, the box of its half-extents capped at
+// max_magnification / 2 (at least r_min). Scalar: magnified points are few
 // next to the one-pixel majority.
 int64_t SplatFootprints(const ProjectedBlock& blk,
                         int m,
                         int base,
                         const float* fp,
+                        const float* fp_axes,
                         float scale,
-                        float focal,
+                        const FrameProjector& proj,
                         float r_min,
                         float max_magnification,
                         int w,
                         int h,
                         uint64_t* kb) {
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const float cap = 0.5f * max_magnification;
+  const bool enabled = max_magnification > 1.0f;
+  const float* r = proj.r;
   int64_t projected = 0;
   for (int k = 0; k < m; ++k) {
     if (!blk.ok[k]) continue;
     const float u = blk.u[k], v = blk.v[k], z = blk.z[k];
     const uint64_t key = PackKey(z, base + k);
-    const float r2 =
-        std::max(r_min * r_min,
-                 FootprintRadius2(fp[k] * scale, focal, z, max_magnification));
-    if (r2 <= 0) {
+    float hx = 0, hy = 0;
+    const float* e = fp_axes ? fp_axes + 6 * k : nullptr;
+    if (e && (e[0] != 0 || e[1] != 0 || e[2] != 0 || e[3] != 0 || e[4] != 0 ||
+              e[5] != 0)) {
+      // Pixel vector of a displacement d (camera frame) at the point:
+      // (fx d_x - (u - cx) d_z) / z, (fy d_y - (v - cy) d_z) / z.
+      const float inv = 1.0f / z, du = u - proj.cx, dv = v - proj.cy;
+      for (int a = 0; a < 2; ++a) {
+        const float* d = e + 3 * a;
+        const float cx_ = r[0] * d[0] + r[1] * d[1] + r[2] * d[2];
+        const float cy_ = r[3] * d[0] + r[4] * d[1] + r[5] * d[2];
+        const float cz_ = r[6] * d[0] + r[7] * d[1] + r[8] * d[2];
+        hx += 0.5f * std::abs((proj.fx * cx_ - du * cz_) * inv);
+        hy += 0.5f * std::abs((proj.fy * cy_ - dv * cz_) * inv);
+      }
+    } else {
+      hx = hy =
+          FootprintHalfExtent(fp[k] * scale, proj.focal, z, max_magnification);
+    }
+    if (!enabled || !(std::max(hx, hy) > 0.525f)) {
+      if (r_min > 0) {
+        if (u > -r_min - 1 && u < fw + r_min && v > -r_min - 1 &&
+            v < fh + r_min)
+          projected += SplatDisk(u, v, r_min, key, w, h, kb);
+        continue;
+      }
       const float fu = u + 0.5f, fv = v + 0.5f;
       if (!(fu >= 0 && fu < fw && fv >= 0 && fv < fh)) continue;
       uint64_t* slot =
@@ -297,25 +372,11 @@ int64_t SplatFootprints(const ProjectedBlock& blk,
       ++projected;
       continue;
     }
-    const float r = std::sqrt(r2);
-    if (!(u > -r - 1 && u < fw + r && v > -r - 1 && v < fh + r)) continue;
-    const int j0 = std::max(0, CeilI(v - r));
-    const int j1 = std::min(h - 1, FloorI(v + r));
-    const int i0 = std::max(0, CeilI(u - r));
-    const int i1 = std::min(w - 1, FloorI(u + r));
-    uint32_t hit = 0;
-    for (int j = j0; j <= j1; ++j) {
-      const float dy = static_cast<float>(j) - v;
-      const float dy2 = dy * dy;
-      uint64_t* row = kb + static_cast<size_t>(j) * w;
-      for (int c = i0; c <= i1; ++c) {
-        const float dx = static_cast<float>(c) - u;
-        const uint32_t in = (dx * dx + dy2) <= r2;
-        row[c] = std::min(row[c], in ? key : kEmptyKey);
-        hit |= in;
-      }
-    }
-    projected += hit;
+    // At least 0.5: the box holds the pixel centre nearest the projection.
+    hx = std::max(std::max(r_min, 0.5f), std::min(hx, cap));
+    hy = std::max(std::max(r_min, 0.5f), std::min(hy, cap));
+    if (!(u > -hx - 1 && u < fw + hx && v > -hy - 1 && v < fh + hy)) continue;
+    projected += SplatBox(u, v, hx, hy, key, w, h, kb);
   }
   return projected;
 }
@@ -467,9 +528,11 @@ void RenderZBuffer(const PackedCloud& soa,
       const int m = std::min(kBlock, range.end - base);
       if (footprints) {
         ProjectBlock(soa, base, m, range.proj, &blk);
-        projected += SplatFootprints(blk, m, base, soa.footprint.data() + base,
-                                     range.footprint_scale, range.proj.focal, r,
-                                     max_magnification, w, h, kb);
+        projected += SplatFootprints(
+            blk, m, base, soa.footprint.data() + base,
+            soa.footprint_axes.empty() ? nullptr
+                                       : soa.footprint_axes.data() + 6 * base,
+            range.footprint_scale, range.proj, r, max_magnification, w, h, kb);
         continue;
       }
       if (r <= 0) {

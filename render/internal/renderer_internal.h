@@ -80,8 +80,9 @@ struct FrameProjector {
 struct ProjectedRange {
   int begin = 0, end = 0;
   FrameProjector proj;
-  // Footprint splats: > 0 multiplies the packed footprints (a moving set's
-  // largest axis scale; 1 for the static cloud); 0 = fixed radius.
+  // Footprint splats: > 0 multiplies the packed camera-facing footprints (a
+  // moving set's largest axis scale; 1 for the static cloud; surface axes go
+  // through proj's linear part instead); 0 = fixed radius.
   float footprint_scale = 0;
 };
 
@@ -136,6 +137,9 @@ struct PackedCloud {
                                   // + sentinel -1 at [n]
   std::vector<float> footprint;   // capture footprints (0 = none); empty when
                                   // no packed cloud carries any
+  std::vector<float> footprint_axes;  // 6 per point: footprint_u, footprint_v
+                                      // (zeros = none); empty when no packed
+                                      // cloud carries them
   size_t size() const { return x.size(); }
 
   // Capacity for n points (avoids re-allocating when sets are appended).

@@ -50,18 +50,18 @@ TEST(Footprint, CaptureFootprintIsDepthOverFocal) {
   EXPECT_EQ(cloud.footprints[2], 0.0f);  // behind the camera: one pixel
 }
 
-TEST(Footprint, RadiusFollowsMagnificationWithMarginAndCap) {
-  // L = s f / z; r² = min(L, cap)² / 2.
-  EXPECT_EQ(FootprintRadius2(0.01f, 100, 1.0f, 3), 0.0f);    // L = 1
-  EXPECT_EQ(FootprintRadius2(0.0104f, 100, 1.0f, 3), 0.0f);  // L = 1.04
-  EXPECT_NEAR(FootprintRadius2(0.02f, 100, 1.0f, 3), 2.0, 1e-5);
-  EXPECT_NEAR(FootprintRadius2(0.1f, 100, 1.0f, 3), 4.5, 1e-5);
-  EXPECT_EQ(FootprintRadius2(0.1f, 100, 1.0f, 1), 0.0f);  // cap 1: off
+TEST(Footprint, HalfExtentFollowsMagnificationWithMarginAndCap) {
+  // L = s f / z; half-extent min(L, cap) / 2 once L > 1.05.
+  EXPECT_EQ(FootprintHalfExtent(0.01f, 100, 1.0f, 3), 0.0f);    // L = 1
+  EXPECT_EQ(FootprintHalfExtent(0.0104f, 100, 1.0f, 3), 0.0f);  // L = 1.04
+  EXPECT_NEAR(FootprintHalfExtent(0.02f, 100, 1.0f, 3), 1.0, 1e-6);
+  EXPECT_NEAR(FootprintHalfExtent(0.1f, 100, 1.0f, 3), 1.5, 1e-6);
+  EXPECT_EQ(FootprintHalfExtent(0.1f, 100, 1.0f, 1), 0.0f);  // cap 1: off
 }
 
 // Pixels drawn for one point with footprint s at depth 10 straight ahead,
-// projected onto the centre of pixel (160, 120): the disk of radius r covers
-// the pixels whose centres are within r.
+// projected onto the centre of pixel (160, 120): the box of half-extent h
+// covers the pixels whose centres are within h on both axes.
 int DrawnPixels(float footprint, double max_magnification, double scale = 1) {
   const PinholeCamera camera(100, 100, 160, 120, 320, 240);
   RenderOptions o = Options(SplatSize::kFootprint);
@@ -92,8 +92,9 @@ int DrawnPixels(float footprint, double max_magnification, double scale = 1) {
 TEST(Footprint, DiskPixelCountsMatchTheRadius) {
   // f = 100, z = 10: L = 10 s.
   EXPECT_EQ(DrawnPixels(0.1f, 3), 1);   // L = 1: one pixel
-  EXPECT_EQ(DrawnPixels(0.2f, 3), 9);   // L = 2, r = 1.414: d² <= 2
-  EXPECT_EQ(DrawnPixels(1.0f, 3), 13);  // L = 10 capped at 3, r = 2.12
+  EXPECT_EQ(DrawnPixels(0.2f, 3), 9);   // L = 2, h = 1: 3 x 3
+  EXPECT_EQ(DrawnPixels(0.4f, 5), 25);  // L = 4, h = 2: 5 x 5
+  EXPECT_EQ(DrawnPixels(1.0f, 3), 9);   // L = 10 capped at 3, h = 1.5
   EXPECT_EQ(DrawnPixels(1.0f, 1), 1);   // cap 1: one pixel
   // A moving set scaled x2 doubles its footprints: L = 2 from s = 0.1.
   EXPECT_EQ(DrawnPixels(0.1f, 3, 2.0), 9);
@@ -131,22 +132,54 @@ TEST(Footprint, CloserViewOfAPointmapHasNoHolesOnTheMagnifiedFace) {
                 face.rows) = 0;
   const int face_pixels = cv::countNonZero(face);
   ASSERT_GT(face_pixels, 5000);
-  PointCloud with = v.cloud;
-  SetCaptureFootprints(kCamera, Rigid3d(), &with);
+  // Pixels where the truth sees the ground (camera y = 1.6 at their depth).
+  cv::Mat ground(v.truth.depth.size(), CV_8U, cv::Scalar(0));
+  for (int j = 0; j < ground.rows; ++j)
+    for (int i = 0; i < ground.cols; ++i) {
+      const float d = v.truth.depth.at<float>(j, i);
+      ground.at<uint8_t>(j, i) =
+          d > 0 && std::abs((j - kCamera.cy) / kCamera.fy * d - 1.6) < 1e-3
+              ? 255
+              : 0;
+    }
+  const int ground_pixels = cv::countNonZero(ground);
+  ASSERT_GT(ground_pixels, 10000);
+  PointCloud square = v.cloud, surface = v.cloud;
+  SetCaptureFootprints(kCamera, Rigid3d(), &square, /*surface_axes=*/false);
+  SetCaptureFootprints(kCamera, Rigid3d(), &surface);
+  ASSERT_EQ(surface.footprint_u.size(), surface.size());
   const RenderedFrame fixed = RenderFrame(v.cloud, kCamera, v.cam_from_world,
                                           Options(SplatSize::kFixed));
-  const RenderedFrame splat = RenderFrame(with, kCamera, v.cam_from_world,
+  const RenderedFrame splat_square = RenderFrame(
+      square, kCamera, v.cam_from_world, Options(SplatSize::kFootprint));
+  const RenderedFrame splat = RenderFrame(surface, kCamera, v.cam_from_world,
                                           Options(SplatSize::kFootprint));
-  const double fixed_cover =
-      cv::countNonZero(face & (fixed.mask == kMaskValid)) / double(face_pixels);
-  const double splat_cover =
-      cv::countNonZero(face & (splat.mask == kMaskValid)) / double(face_pixels);
-  // One pixel per point covers about 1 / 1.7² of a 1.7x magnified face.
-  EXPECT_LT(fixed_cover, 0.5);
-  EXPECT_GT(splat_cover, 0.999);
-  // Where a face pixel shows a point that is not of the face (a hole through
-  // which the wall shows), the depth is wrong: with footprints, every face
-  // pixel has the face's depth (splat edges may take a neighbour's, ±2 %).
+  auto cover = [](const RenderedFrame& f, const cv::Mat& where) {
+    return cv::countNonZero(where & (f.mask == kMaskValid)) /
+           double(cv::countNonZero(where));
+  };
+  std::printf(
+      "face (1.7x): coverage one pixel %.3f, square footprints %.3f, surface "
+      "footprints %.3f; ground: %.3f, %.3f, %.3f\n",
+      cover(fixed, face), cover(splat_square, face), cover(splat, face),
+      cover(fixed, ground), cover(splat_square, ground), cover(splat, ground));
+  // One pixel per point covers about 1 / 1.7² of a 1.7x magnified face;
+  // either footprint covers all of it.
+  EXPECT_LT(cover(fixed, face), 0.5);
+  EXPECT_GT(cover(splat_square, face), 0.999);
+  EXPECT_GT(cover(splat, face), 0.999);
+  // The ground is stretched along the view by up to (z0 / z)², 7x in the
+  // bottom rows (frame-0 depth 8 m seen from 3 m): only the surface axes know
+  // it, up to the cap (3x by default, 8x here).
+  RenderOptions cap8 = Options(SplatSize::kFootprint);
+  cap8.max_footprint_magnification = 8;
+  const RenderedFrame splat8 =
+      RenderFrame(surface, kCamera, v.cam_from_world, cap8);
+  std::printf("ground with the cap at 8x: %.3f\n", cover(splat8, ground));
+  EXPECT_GT(cover(splat, ground), cover(splat_square, ground) + 0.2);
+  EXPECT_GT(cover(splat8, ground), 0.98);
+  // Every face pixel shows the face at its depth (holes would show the wall
+  // or nothing; splat edges may take a neighbour's depth, within 2 %).
   int wrong_depth_fixed = 0, wrong_depth_splat = 0;
   for (int j = 0; j < face.rows; ++j) {
     for (int i = 0; i < face.cols; ++i) {
@@ -157,9 +190,11 @@ TEST(Footprint, CloserViewOfAPointmapHasNoHolesOnTheMagnifiedFace) {
   }
   EXPECT_EQ(wrong_depth_splat, 0);
   EXPECT_GT(wrong_depth_fixed, face_pixels / 2);  // holes: empty or the wall
-  // Colour against the ray-cast truth on the face: the splats reproduce the
-  // texture at least as well as the one-pixel render where it has a point.
+  // Colour against the ray-cast truth on the face (frontal, sampled at one
+  // point per capture pixel; the ground far ahead is sampled once per metre
+  // or more and looks blocky when approached).
   const double psnr = test::MaskedPsnr(splat.rgb, v.truth.rgb, face);
+  std::printf("PSNR against the ray-cast truth on the face %.1f dB\n", psnr);
   EXPECT_GT(psnr, 20.0);
   // The static cloud without footprints under kFootprint is taken as seen by
   // frame 0 of the render (here: the closer camera), so it draws one pixel per
@@ -169,18 +204,27 @@ TEST(Footprint, CloserViewOfAPointmapHasNoHolesOnTheMagnifiedFace) {
   EXPECT_TRUE(SameBytes(no_fp.rgb, fixed.rgb));
 }
 
+// Seen from the capture pose, a pointmap is drawn one pixel per point with
+// either footprint (its pixels are not magnified); seen from farther away,
+// with the camera-facing square too. (Surface axes seen from another
+// direction may be magnified although farther: a footprint stretched along
+// the capture ray, the far road, turns sideways with the parallax.)
 TEST(Footprint, SeenAsAtCaptureOrFartherItIsOnePixelPerPointByteForByte) {
   const CloserView v = MakeCloserView();
-  PointCloud with = v.cloud;
-  SetCaptureFootprints(kCamera, Rigid3d(), &with);
-  // The capture pose itself, and one 4 m behind it (everything smaller).
-  for (const Rigid3d& world_from_cam :
-       {Rigid3d(), Rigid3d(Eigen::Quaterniond::Identity(),
-                           Eigen::Vector3d(0.3, -0.2, -4))}) {
-    const Rigid3d cam_from_world = world_from_cam.Inverse();
+  PointCloud surface = v.cloud, square = v.cloud;
+  SetCaptureFootprints(kCamera, Rigid3d(), &surface);
+  SetCaptureFootprints(kCamera, Rigid3d(), &square, /*surface_axes=*/false);
+  ASSERT_EQ(surface.footprint_u.size(), surface.size());
+  const Rigid3d farther =
+      Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.3, -0.2, -4))
+          .Inverse();
+  for (const auto& [cloud, cam_from_world] :
+       {std::pair<const PointCloud*, Rigid3d>{&surface, Rigid3d()},
+        {&square, Rigid3d()},
+        {&square, farther}}) {
     const RenderedFrame fixed = RenderFrame(v.cloud, kCamera, cam_from_world,
                                             Options(SplatSize::kFixed));
-    const RenderedFrame splat = RenderFrame(with, kCamera, cam_from_world,
+    const RenderedFrame splat = RenderFrame(*cloud, kCamera, cam_from_world,
                                             Options(SplatSize::kFootprint));
     EXPECT_TRUE(SameBytes(fixed.rgb, splat.rgb));
     EXPECT_TRUE(SameBytes(fixed.depth, splat.depth));
@@ -188,8 +232,8 @@ TEST(Footprint, SeenAsAtCaptureOrFartherItIsOnePixelPerPointByteForByte) {
     EXPECT_EQ(fixed.num_projected, splat.num_projected);
   }
   // kFixed ignores the footprints (the paper preset keeps one pixel).
-  const RenderedFrame fixed_with =
-      RenderFrame(with, kCamera, v.cam_from_world, Options(SplatSize::kFixed));
+  const RenderedFrame fixed_with = RenderFrame(
+      surface, kCamera, v.cam_from_world, Options(SplatSize::kFixed));
   const RenderedFrame fixed_without = RenderFrame(
       v.cloud, kCamera, v.cam_from_world, Options(SplatSize::kFixed));
   EXPECT_TRUE(SameBytes(fixed_with.rgb, fixed_without.rgb));
@@ -216,6 +260,8 @@ TEST(Footprint, OutputDoesNotDependOnThreadsOrPointOrder) {
   std::reverse(reversed.positions.begin(), reversed.positions.end());
   std::reverse(reversed.colors.begin(), reversed.colors.end());
   std::reverse(reversed.footprints.begin(), reversed.footprints.end());
+  std::reverse(reversed.footprint_u.begin(), reversed.footprint_u.end());
+  std::reverse(reversed.footprint_v.begin(), reversed.footprint_v.end());
   const RenderResult rev = RenderFrames(reversed, {kCamera}, poses, o);
   for (size_t f = 0; f < poses.size(); ++f) {
     EXPECT_TRUE(SameBytes(one.frames[f].rgb, two.frames[f].rgb)) << f;
@@ -239,6 +285,12 @@ TEST(Footprint, BadOptionsAndFootprintsAreRejected) {
   EXPECT_THROW(cloud.Check(), InputError);  // size
   cloud.footprints = {0.01f, -0.5f};
   EXPECT_THROW(cloud.Check(), InputError);  // negative
+  o = Options(SplatSize::kFootprint);
+  o.radius_px = 2;  // footprints size every point
+  EXPECT_THROW(o.Check(), InputError);
+  cloud.footprints = {0.01f, 0.02f};
+  cloud.footprint_u = {Eigen::Vector3f::Zero()};  // without footprint_v
+  EXPECT_THROW(cloud.Check(), InputError);
   EXPECT_EQ(ParseSplatSize("footprint"), SplatSize::kFootprint);
   EXPECT_EQ(ToString(SplatSize::kFixed), "fixed");
   EXPECT_THROW(ParseSplatSize("big"), InputError);
