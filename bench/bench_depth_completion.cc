@@ -8,8 +8,10 @@
 // BM_CompleteDepth: CompleteDepth + unprojection of every completed pixel
 // (what the source does per clip after projecting the sweeps);
 // BM_LidarDenseScene: the whole source for one clip (sweeps read from disk,
-// projection, completion, unprojection, colours; the frame-0 image decoded
-// beforehand, as the builder hands it over). One core: OpenCV's thread pool
+// projection, completion, unprojection, colours, the held-out accuracy on the
+// frame-0 sweep (a second completion) and the capture footprints with their
+// surface axes; the frame-0 image decoded beforehand, as the builder hands it
+// over). One core: OpenCV's thread pool
 // is set to one thread, and the CPU time is the whole process's.
 
 #include <cstdlib>

@@ -28,17 +28,24 @@ cv::Mat DiamondKernel(int side) {
   return k;
 }
 
-// Empty pixels of `inverted` (value <= 0) take the dilation by `kernel`.
+// Empty pixels of `inverted` (value 0) take the dilation by `kernel`.
 void FillEmpty(cv::Mat* inverted, const cv::Mat& kernel) {
   cv::Mat dilated;
   cv::dilate(*inverted, dilated, kernel);
-  dilated.copyTo(*inverted, *inverted <= 0.f);
+  dilated.copyTo(*inverted, *inverted == 0);
 }
 
 // Filled pixels (value > 0) take `filtered`.
 void ReplaceFilled(cv::Mat* inverted, const cv::Mat& filtered) {
-  filtered.copyTo(*inverted, *inverted > 0.f);
+  filtered.copyTo(*inverted, *inverted > 0);
 }
+
+// The pipeline runs on 16-bit unsigned levels: OpenCV's median and
+// morphology filters are 2-2.5x faster on 16-bit than on float lanes (the
+// 5x5 float median alone took 12 of the 35 ms of a 1600x900 frame). Level
+// = round((max_depth - d) * kLevels / max_depth) + 1 (0 = empty): 1.5 mm
+// steps at the default 100 m, far below the completion's own error.
+constexpr double kLevels = 65000.0;
 
 // Per column, the first supported row: the top-most return within
 // +-half_width columns (rows() when none).
@@ -120,18 +127,20 @@ cv::Mat CompleteDepth(const cv::Mat& sparse,
                        "depth completion: the sparse depth must be a "
                        "non-empty float32 image");
   const float max_depth = static_cast<float>(options.max_depth_m);
+  const double per_metre = kLevels / options.max_depth_m;
   // Inverted depth: nearer = larger, so dilations keep the nearest surface.
-  cv::Mat inverted(sparse.size(), CV_32F, cv::Scalar(0));
+  cv::Mat inverted(sparse.size(), CV_16U, cv::Scalar(0));
   int64_t returns = 0;
   for (int y = 0; y < sparse.rows; ++y) {
     const float* in = sparse.ptr<float>(y);
-    float* out = inverted.ptr<float>(y);
+    uint16_t* out = inverted.ptr<uint16_t>(y);
     for (int x = 0; x < sparse.cols; ++x) {
       GEODRIVE_CHECK_INPUT(std::isfinite(in[x]) && in[x] >= 0.f,
                            "depth completion: sparse depth at (", x, ", ", y,
                            ") is ", in[x], " (expected >= 0, 0 = none)");
       if (in[x] > 0.f && in[x] <= max_depth) {
-        out[x] = max_depth - in[x] + 1e-3f;  // > 0 even at max depth
+        out[x] = static_cast<uint16_t>(
+            std::lround((max_depth - in[x]) * per_metre) + 1);  // > 0
         ++returns;
       }
     }
@@ -156,21 +165,27 @@ cv::Mat CompleteDepth(const cv::Mat& sparse,
       SupportEnvelope(sparse, options.envelope_half_width);
   cv::Mat dense(sparse.size(), CV_32F, cv::Scalar(0));
   int64_t supported = 0, completed_supported = 0, completed = 0;
-  for (int x = 0; x < sparse.cols; ++x) {
-    float top_depth = 0.f;
-    for (int y = sparse.rows - 1; y >= 0; --y) {
-      const float v = inverted.at<float>(y, x);
-      const float d = v > 0.f ? max_depth + 1e-3f - v : 0.f;
+  // Bottom to top, row by row (cache order); per column the depth of the
+  // top-most completed pixel so far, for fill_above_envelope.
+  std::vector<float> top_depth(sparse.cols, 0.f);
+  for (int y = sparse.rows - 1; y >= 0; --y) {
+    const uint16_t* in = inverted.ptr<uint16_t>(y);
+    float* out = dense.ptr<float>(y);
+    for (int x = 0; x < sparse.cols; ++x) {
+      const uint16_t v = in[x];
+      const float d =
+          v > 0 ? static_cast<float>(options.max_depth_m - (v - 1) / per_metre)
+                : 0.f;
       if (y >= envelope[x]) {
         ++supported;
         if (d > 0.f) {
-          dense.at<float>(y, x) = d;
-          top_depth = d;
+          out[x] = d;
+          top_depth[x] = d;
           ++completed_supported;
           ++completed;
         }
-      } else if (options.fill_above_envelope && top_depth > 0.f) {
-        dense.at<float>(y, x) = top_depth;
+      } else if (options.fill_above_envelope && top_depth[x] > 0.f) {
+        out[x] = top_depth[x];
         ++completed;
       }
     }
