@@ -549,7 +549,7 @@ CommandRunner SetupRender(CLI::App& app) {
   app.add_option("--preset", a->preset,
                  "paper (zbuffer 480x720, 0.1 < z < 100), footprint (paper "
                  "with footprint-aware splats: a point seen closer than at "
-                 "capture covers its magnified pixel, at most 3x) or "
+                 "capture covers its magnified pixel, at most 8x) or "
                  "geodrive-compat (soft 288x512, r 0.01 NDC, K 10, x2 bilinear "
                  "upsample, frame 0 = real image)")
       ->check(CLI::IsMember({"paper", "footprint", "geodrive-compat"}))
@@ -602,7 +602,8 @@ CommandRunner SetupRender(CLI::App& app) {
   app.add_option_function<double>(
          "--max-magnification", [a](double v) { a->max_magnification = v; },
          "footprint preset: the largest magnification a point is drawn at "
-         "(1..16; 1 = one pixel per point; default: the preset's, 3)")
+         "(1..16; 1 = one pixel per point; default: the preset's, 8 for "
+         "footprint)")
       ->check(CLI::Range(1.0, 16.0));
   app.add_flag("--hole-fill", a->hole_fill,
                "zbuffer: fill small holes from the nearest valid neighbour "

@@ -47,6 +47,70 @@ void ReplaceFilled(cv::Mat* inverted, const cv::Mat& filtered) {
 // steps at the default 100 m, far below the completion's own error.
 constexpr double kLevels = 65000.0;
 
+// Step 1b (see the header): per column of the transposed image (a row
+// here), the runs of filled levels (a scan line's returns after the diamond
+// dilation); for three consecutive runs A, B, C whose centre inverse depths
+// lie on a line, the column from A's centre to C's is set along it. Runs are
+// measured before any change (a later triple reads the original runs). Levels
+// convert to inverse depth as 1 / (max_depth - (L - 1) / k).
+void InterpolatePlanes(cv::Mat* inverted,
+                       double max_depth,
+                       double per_metre,
+                       const DepthCompletionOptions& options) {
+  cv::Mat t;
+  cv::transpose(*inverted, t);
+  struct Run {
+    int begin, end;  // [begin, end)
+    double centre, inv;
+  };
+  auto inv_depth = [&](uint16_t level) {
+    return 1.0 / std::max(1e-3, max_depth - (level - 1) / per_metre);
+  };
+  auto level_of = [&](double inv) {
+    const double d = 1.0 / inv;
+    return static_cast<uint16_t>(std::clamp<long>(
+        std::lround((max_depth - d) * per_metre) + 1, 1, 65535));
+  };
+  std::vector<Run> runs;
+  for (int x = 0; x < t.rows; ++x) {
+    uint16_t* col = t.ptr<uint16_t>(x);
+    runs.clear();
+    for (int y = 0; y < t.cols;) {
+      if (col[y] == 0) {
+        ++y;
+        continue;
+      }
+      Run r{y, y, 0, 0};
+      double sum = 0;
+      while (y < t.cols && col[y] != 0) sum += inv_depth(col[y++]);
+      r.end = y;
+      r.centre = 0.5 * (r.begin + r.end - 1);
+      r.inv = sum / (r.end - r.begin);
+      runs.push_back(r);
+    }
+    for (size_t k = 2; k < runs.size(); ++k) {
+      const Run &a = runs[k - 2], &b = runs[k - 1], &c = runs[k];
+      if (b.begin - a.end > options.plane_max_gap ||
+          c.begin - b.end > options.plane_max_gap)
+        continue;
+      const double s1 = (b.inv - a.inv) / (b.centre - a.centre);
+      const double s2 = (c.inv - b.inv) / (c.centre - b.centre);
+      const double scale = std::max(std::abs(s1), std::abs(s2));
+      if (!(std::abs(s2 - s1) <=
+            options.plane_tolerance * scale + 1e-4 * b.inv / 64))
+        continue;
+      // The line through A's and C's centres (both slopes agree), from A's
+      // centre to C's: the gaps and the plateaus the diamond dilation made.
+      const double slope = (c.inv - a.inv) / (c.centre - a.centre);
+      const int y0 = static_cast<int>(std::ceil(a.centre));
+      const int y1 = static_cast<int>(std::floor(c.centre));
+      for (int y = y0; y <= y1; ++y)
+        col[y] = level_of(a.inv + slope * (y - a.centre));
+    }
+  }
+  cv::transpose(t, *inverted);
+}
+
 // Per column, the first supported row: the top-most return within
 // +-half_width columns (rows() when none).
 std::vector<int> SupportEnvelope(const cv::Mat& sparse, int half_width) {
@@ -96,7 +160,10 @@ bool DepthCompletionOptions::Check() const {
          OddPositive(diamond_kernel) && OddPositive(close_kernel) &&
          OddPositive(small_fill_kernel) && OddPositive(large_fill_kernel) &&
          (median_kernel == 1 || median_kernel == 3 || median_kernel == 5) &&
-         OddPositive(gaussian_kernel) && envelope_half_width >= 0;
+         OddPositive(gaussian_kernel) && envelope_half_width >= 0 &&
+         plane_max_gap >= 1 && plane_max_gap <= 4096 &&
+         std::isfinite(plane_tolerance) && plane_tolerance >= 0 &&
+         plane_tolerance <= 1;
 }
 
 std::string DepthCompletionReport::BriefReport() const {
@@ -146,6 +213,8 @@ cv::Mat CompleteDepth(const cv::Mat& sparse,
     }
   }
   cv::dilate(inverted, inverted, DiamondKernel(options.diamond_kernel));
+  if (options.plane_interpolation)
+    InterpolatePlanes(&inverted, options.max_depth_m, per_metre, options);
   cv::morphologyEx(inverted, inverted, cv::MORPH_CLOSE,
                    FullKernel(options.close_kernel));
   FillEmpty(&inverted, FullKernel(options.small_fill_kernel));

@@ -8,6 +8,14 @@
 // max-filter keeps the nearest surface; held in 16-bit levels of 1.5 mm at
 // the default 100 m, for speed):
 //   1. dilate with a diamond kernel (default 5x5);
+//   1b. (ours, on by default) plane interpolation between scan lines: in
+//      each column, where three consecutive runs of filled pixels have
+//      centres whose inverse depths lie on a line (a plane seen through a
+//      pinhole has an inverse depth affine in the pixel: the road, walls),
+//      the column between the outer centres is set along that line, gaps
+//      and the dilation's plateaus alike. The morphological steps fill such
+//      gaps with steps of constant depth, which tear apart into stripes when
+//      the road is approached;
 //   2. close small holes (full kernel, 5x5);
 //   3. fill remaining empty pixels by a dilation with a 7x7 full kernel;
 //   4. fill remaining empty pixels by a dilation with a large full kernel
@@ -39,6 +47,13 @@ struct DepthCompletionOptions {
   double max_depth_m = 100.0;
   // Step 1: side of the diamond kernel (odd, >= 1).
   int diamond_kernel = 5;
+  // Step 1b: plane interpolation between scan lines (false: IP-Basic as
+  // published), for gaps of at most `plane_max_gap` rows, when the slopes of
+  // inverse depth between consecutive run centres agree within
+  // `plane_tolerance` (relative).
+  bool plane_interpolation = true;
+  int plane_max_gap = 64;
+  double plane_tolerance = 0.05;
   // Step 2: side of the closing kernel (odd, >= 1).
   int close_kernel = 5;
   // Step 3: side of the small-hole fill kernel (odd, >= 1).

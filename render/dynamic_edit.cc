@@ -182,6 +182,14 @@ PointCloud StripForRender(const PointCloud& cloud,
     out.colors.reserve(keep.size());
     for (size_t i : keep) out.colors.push_back(cloud.colors[i]);
   }
+  // Capture footprints travel with their points (footprint splats).
+  for (size_t i : keep) {
+    if (cloud.HasFootprints()) out.footprints.push_back(cloud.footprints[i]);
+    if (!cloud.footprint_u.empty()) {
+      out.footprint_u.push_back(cloud.footprint_u[i]);
+      out.footprint_v.push_back(cloud.footprint_v[i]);
+    }
+  }
   out.instance_ids.assign(keep.size(), -1);
   return out;
 }

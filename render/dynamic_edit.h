@@ -124,9 +124,10 @@ struct DynamicEditOptions {
   // or rendered at a higher resolution than camera 0) would show gaps through
   // which the background bleeds. Its points carry their frame-0 pixel
   // footprints and are drawn as footprint splats (render/footprint.h, the
-  // renderer's one mechanism): magnification L = (z0 / zt) (ft / f0)
-  // max(scale) per point, capped at this value (1 = off: one pixel per point).
-  double max_magnification = 3.0;
+  // renderer's one mechanism), capped at the render's
+  // max_footprint_magnification (3 by default, 8 in the footprint preset)
+  // and at this value: 1 = off (one pixel per point), in [1, 16].
+  double max_magnification = 16.0;
   // Threads for the per-frame renders (0 = OpenMP default); the output does not
   // depend on it.
   int num_threads = 0;

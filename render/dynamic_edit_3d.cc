@@ -203,6 +203,10 @@ DynamicObject MakeObject(const PointCloud& cloud_in_world,
   object.source_id = source;
   object.render_id = render_id;
   object.points_in_object = StripForRender(cloud_in_world, seg.indices);
+  // Footprints are set in the object's frame (SetFootprints).
+  object.points_in_object.footprints.clear();
+  object.points_in_object.footprint_u.clear();
+  object.points_in_object.footprint_v.clear();
   const Rigid3d object_from_world =
       seg.box0 ? seg.box0->WorldFromBox().Inverse() : Rigid3d();
   const Eigen::Matrix3d object_r =
@@ -339,7 +343,8 @@ DynamicEditResult Render3d(const PointCloud& cloud_in_world,
                                            : (render_options.num_threads > 0
                                                   ? render_options.num_threads
                                                   : omp_get_max_threads());
-  ro.max_footprint_magnification = options.max_magnification;
+  ro.max_footprint_magnification =
+      std::min(ro.max_footprint_magnification, options.max_magnification);
   DynamicEditOptions build_options = options;
   build_options.num_threads = ro.num_threads;
   DynamicScene scene =

@@ -38,7 +38,7 @@ RenderOptions PresetRenderOptions(RenderPreset preset) {
     o.radius_px = 0;
     if (preset == RenderPreset::kFootprint) {
       o.splat_size = SplatSize::kFootprint;
-      o.max_footprint_magnification = 3.0;
+      o.max_footprint_magnification = 8.0;
     }
     return o;
   }

@@ -20,8 +20,9 @@ namespace geodrive {
 
 //  - footprint: the paper's z-buffer with footprint-aware splats
 //    (render/footprint.h): a point seen from closer than at capture covers its
-//    magnified capture pixel (at most 3x), so approached surfaces keep no
-//    holes; seen as at capture or farther, one pixel per point as in paper.
+//    magnified capture pixel (at most 8x: the road just ahead of the car is
+//    stretched along the view by up to (z0 / z)²), so approached surfaces
+//    keep no holes; seen as at capture, one pixel per point as in paper.
 enum class RenderPreset { kPaper, kGeodriveCompat, kFootprint };
 std::string ToString(RenderPreset preset);
 // "paper", "geodrive-compat" or "footprint"; throws InputError otherwise.

@@ -354,13 +354,13 @@ TEST(LidarDenseSynthetic, RendersAlongTheTrueTrajectoryBesideMonst3r) {
   }
   // Measured (seed 22, 640x360): lidar-dense frame 0 covers 0.813 of the
   // static pixels at 35.4 dB; along the 25 frames the footprint preset keeps
-  // 0.573 of them on average (paper 0.288), MonST3R 0.640 (paper 0.234: its
+  // 0.672 of them on average (paper 0.289), MonST3R 0.801 (paper 0.234: its
   // 512x288 pointmap is magnified 1.25x at 640x360 already in frame 0,
   // covering 0.629 -> 0.929). Floors with a margin:
   EXPECT_GT(s[0][1].psnr0, 30.0);
   EXPECT_GT(s[0][1].coverage0, 0.75);
   for (int k = 0; k < 2; ++k)
-    EXPECT_GT(s[k][1].mean_coverage, s[k][0].mean_coverage + 0.15) << names[k];
+    EXPECT_GT(s[k][1].mean_coverage, s[k][0].mean_coverage + 0.3) << names[k];
   EXPECT_GT(s[1][1].coverage0, 0.9);
   EXPECT_GT(s[0][1].mean_psnr, 18.0);
 }
@@ -453,14 +453,14 @@ TEST(LidarDenseReal, FootprintPresetCoversMoreOfTheApproachedScene) {
                 footprint[t]);
   }
   // Measured: frame 0 PSNR 30.2 -> 35.1 dB; coverage of frames 2-7
-  // 0.607 0.528 0.500 0.500 0.459 0.404 -> 0.645 0.580 0.568 0.606 0.589
-  // 0.547.
+  // 0.606 0.532 0.508 0.497 0.456 0.405 -> 0.733 0.748 0.751 0.768 0.753
+  // 0.716.
   ASSERT_TRUE(quality[0].psnr_static[0] && quality[1].psnr_static[0]);
   EXPECT_GT(*quality[1].psnr_static[0], *quality[0].psnr_static[0] + 3.0);
   for (size_t t = 2; t < 8; ++t)
     EXPECT_GT(footprint[t], paper[t]) << "frame " << t;
-  for (size_t t = 5; t < 8; ++t)
-    EXPECT_GT(footprint[t], paper[t] + 0.05) << "frame " << t;
+  for (size_t t = 4; t < 8; ++t)
+    EXPECT_GT(footprint[t], paper[t] + 0.2) << "frame " << t;
 }
 
 }  // namespace
