@@ -150,18 +150,19 @@ std::optional<double> StaticPsnr(const cv::Mat& cond,
 
 ClipFrames ReadClipFrames(const DriveClip& clip,
                           const BuildDatasetOptions& opt,
-                          bool keep_full) {
+                          int full_size_images) {
   GEODRIVE_CHECK_INPUT(!clip.frames.empty(), clip.id, ": clip has no frames");
   const PinholeCamera& cam = clip.frames.front().camera;
   const ImageResizeSpec spec = OutputSpec(cam, opt);
   const int n = clip.num_frames();
   ClipFrames out;
   out.first_frame_path = clip.frames.front().image_path;
+  const int full = full_size_images < 0 ? n : std::min(n, full_size_images);
   out.gt.resize(n);
-  if (keep_full) out.full.resize(n);
+  out.full.resize(full);
   for (int i = 0; i < n; ++i) {
     const std::string& path = clip.frames[i].image_path;
-    if (!keep_full) {  // DCT-scaled decode straight to the output size
+    if (i >= full) {  // DCT-scaled decode straight to the output size
       out.gt[i] = ReadFrameAtOutputSize(path, cam.width, cam.height, spec);
       continue;
     }
@@ -539,12 +540,12 @@ PairMeta BuildPair(const ClipContext& ctx,
   StageTimer timer(stage_seconds);
   const DriveClip clip =
       timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
-  // Full-size frames only for sources that colour from them (needs_clip:
-  // the LiDAR sources); the others get the ground truth alone.
-  const bool keep_full =
-      CreateSceneSource(opt.SceneSourceName())->Traits().needs_clip;
-  const ClipFrames frames =
-      timer.Run("gt", [&] { return ReadClipFrames(clip, opt, keep_full); });
+  // Full-size frames only as many as the source colours from (the LiDAR
+  // sources: all, or frame 0); the others get the ground truth alone.
+  const int full_size_images =
+      CreateSceneSource(opt.SceneSourceName())->Traits().full_size_images;
+  const ClipFrames frames = timer.Run(
+      "gt", [&] { return ReadClipFrames(clip, opt, full_size_images); });
   const std::string path =
       ctx.folders ? ctx.folders->Find(clip_id).value_or("") : std::string();
   const ConditionScene scene = timer.Run(

@@ -159,7 +159,8 @@ struct SceneInputs {
   // The clip the scene is built for; null for CLI inputs without a clip.
   const DriveClip* clip = nullptr;
   // The clip's decoded images at source size, when the caller has them
-  // (colours for the LiDAR source); read from disk otherwise.
+  // (colours for the LiDAR sources: the first Traits().full_size_images of
+  // them); read from disk otherwise.
   const std::vector<cv::Mat>* clip_images = nullptr;
   // The source's own input: a MonST3R folder, a cloud file, a depth .npy, a
   // depth folder.
@@ -186,6 +187,10 @@ struct SceneSourceTraits {
   // A file that marks the source's folder (per-clip folder layouts,
   // dataset/scene_folders.h); empty = none.
   std::string folder_marker;
+  // How many of the clip's images the source colours from at full size
+  // (SceneInputs::clip_images; the builder decodes only these at full size):
+  // 0, 1 (frame 0) or -1 (all).
+  int full_size_images = 0;
 };
 
 class SceneSource {

@@ -39,6 +39,7 @@ struct ClipContext {
 // The clip's images: at source size (only for sources that colour from them;
 // empty otherwise) and at the output size (the ground truth).
 struct ClipFrames {
+  // The first Traits().full_size_images frames at full size (colours).
   std::vector<cv::Mat> full;
   std::vector<cv::Mat> gt;
   // Frame 0's file (the upstream export reads it at full size).
@@ -69,11 +70,12 @@ struct ConditionRender {
 cv::Mat CompletionPreview(const ConditionScene& scene);
 
 // Reads the clip's images at the output size (dataset/frame_decode.h: a
-// DCT-scaled decode, then a resize), and at full size too with `keep_full`;
-// each is checked against the camera.
+// DCT-scaled decode, then a resize), and the first `full_size_images` (-1 =
+// all) at full size too (ClipFrames::full); each is checked against the
+// camera.
 ClipFrames ReadClipFrames(const DriveClip& clip,
                           const BuildDatasetOptions& options,
-                          bool keep_full);
+                          int full_size_images);
 // The clip's scene from the run's scene source; `path` is the clip's input
 // folder for sources that read one (SceneFolders), empty otherwise.
 ConditionScene BuildClipScene(const DriveClip& clip,

@@ -86,7 +86,7 @@ class LidarSceneSource : public SceneSource {
     return {false, true,
             "a dataset clip with LiDAR: sweeps around frame 0, coloured from "
             "the clip's images",
-            /*folder_marker=*/""};
+            /*folder_marker=*/"", /*full_size_images=*/-1};
   }
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {

@@ -78,7 +78,7 @@ class LidarDenseSceneSource : public SceneSource {
             "a dataset clip with LiDAR: frame-0 depth completed from the "
             "sweeps (causal window by default), unprojected and coloured from "
             "frame 0",
-            /*folder_marker=*/""};
+            /*folder_marker=*/"", /*full_size_images=*/1};
   }
 
   ConditionScene Build(const SceneInputs& in,
