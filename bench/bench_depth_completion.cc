@@ -6,7 +6,9 @@
 //   build/bench/bench_depth_completion --benchmark_filter=.
 //
 // BM_CompleteDepth: CompleteDepth + unprojection of every completed pixel
-// (what the source does per clip after projecting the sweeps);
+// (what the source does per clip after projecting the sweeps; with
+// GEODRIVE_BENCH_SPARSE_DUMP=DIR its sparse inputs are written there as .npy
+// for the peer, bench/depth_completion_vs_ip_basic.sh);
 // BM_LidarDenseScene: the whole source for one clip (sweeps read from disk,
 // projection, completion, unprojection, colours, the held-out accuracy on the
 // frame-0 sweep (a second completion) and the capture footprints with their
@@ -24,6 +26,7 @@
 #include "dataset/scene_source.h"
 #include "geometry/depth_completion.h"
 #include "geometry/image_io.h"
+#include "geometry/npy.h"
 
 namespace geodrive {
 namespace {
@@ -57,6 +60,12 @@ void BM_CompleteDepth(benchmark::State& state) {
   const PointCloud sweeps =
       AggregateStaticSweeps(clip, t0 - 500000, t0 + 50000, &times);
   const cv::Mat sparse = SparseDepthImage(sweeps.positions, cam);
+  // The input for the Python peer (bench/depth_completion_vs_ip_basic.sh).
+  if (const char* dump = std::getenv("GEODRIVE_BENCH_SPARSE_DUMP")) {
+    WriteNpy(
+        std::string(dump) + "/sparse_" + std::to_string(width) + ".npy",
+        NpyArray::Float32({sparse.rows, sparse.cols}, sparse.ptr<float>()));
+  }
   DepthCompletionReport report;
   for (auto _ : state) {
     const cv::Mat dense = CompleteDepth(sparse, {}, &report);

@@ -225,9 +225,11 @@ void SetFootprints(const SceneInputs& in,
   if (!(in.options.max_magnification > 1)) return;
   const Rigid3d world_from_object0 =
       seg.box0 ? seg.box0->WorldFromBox() : Rigid3d();
+  // Camera-facing footprints (no surface axes): an object is small and
+  // mostly seen face-on, and its points are projected every frame.
   SetCaptureFootprints(CameraOf(in.cameras, 0),
                        in.cam_from_world[0] * world_from_object0,
-                       &object->points_in_object);
+                       &object->points_in_object, /*surface_axes=*/false);
 }
 
 // The object of `seg` (render id: the next in `scene`) following `track`:

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 namespace geodrive {
@@ -32,30 +33,44 @@ void SetCaptureFootprints(const PinholeCamera& camera,
   cloud->footprint_u.clear();
   cloud->footprint_v.clear();
   if (!surface_axes || n == 0) return;
-  // The cloud's depth map on the camera's grid: the nearest point per pixel.
+  // The cloud's depth map on the camera's grid (the nearest point per pixel),
+  // held over the bounding box of the projected points only (an object's
+  // points cover a small part of the image).
   const int w = camera.width, h = camera.height;
   const float fx = static_cast<float>(camera.fx),
               fy = static_cast<float>(camera.fy);
   const float cx = static_cast<float>(camera.cx),
               cy = static_cast<float>(camera.cy);
-  std::vector<int64_t> pixel(n, -1);
-  std::vector<float> depth(static_cast<size_t>(w) * h,
-                           std::numeric_limits<float>::infinity());
+  std::vector<int32_t> px(n, -1), py(n, -1);
+  int x0 = w, y0 = h, x1 = -1, y1 = -1;
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3f& p = in_cam[i];
     if (!(p.z() > 0)) continue;
     const float u = fx * p.x() / p.z() + cx, v = fy * p.y() / p.z() + cy;
     if (!(u > -0.5f && u < w - 0.5f && v > -0.5f && v < h - 0.5f)) continue;
-    const int x = std::min(w - 1, static_cast<int>(std::lround(u)));
-    const int y = std::min(h - 1, static_cast<int>(std::lround(v)));
-    pixel[i] = static_cast<int64_t>(y) * w + x;
-    float& d = depth[pixel[i]];
-    d = std::min(d, p.z());
+    px[i] = std::min(w - 1, static_cast<int>(std::lround(u)));
+    py[i] = std::min(h - 1, static_cast<int>(std::lround(v)));
+    x0 = std::min(x0, px[i]), x1 = std::max(x1, px[i]);
+    y0 = std::min(y0, py[i]), y1 = std::max(y1, py[i]);
+  }
+  cloud->footprint_u.assign(n, Eigen::Vector3f::Zero());
+  cloud->footprint_v.assign(n, Eigen::Vector3f::Zero());
+  if (x1 < 0) return;
+  const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+  std::vector<float> depth(static_cast<size_t>(bw) * bh,
+                           std::numeric_limits<float>::infinity());
+  auto cell = [&](int x, int y) -> float& {
+    return depth[static_cast<size_t>(y - y0) * bw + (x - x0)];
+  };
+  for (size_t i = 0; i < n; ++i) {
+    if (px[i] < 0) continue;
+    float& d = cell(px[i], py[i]);
+    d = std::min(d, in_cam[i].z());
   }
   // The depth map's point at pixel (x, y) and its depth (0 = none).
   auto at = [&](int x, int y, Eigen::Vector3f* out) {
-    if (x < 0 || y < 0 || x >= w || y >= h) return 0.0f;
-    const float d = depth[static_cast<size_t>(y) * w + x];
+    if (x < x0 || y < y0 || x > x1 || y > y1) return 0.0f;
+    const float d = cell(x, y);
     if (!std::isfinite(d)) return 0.0f;
     *out = Eigen::Vector3f((x - cx) / fx * d, (y - cy) / fy * d, d);
     return d;
@@ -93,12 +108,9 @@ void SetCaptureFootprints(const PinholeCamera& camera,
     return true;
   };
   const Eigen::Matrix3f world_from_cam_r = r.transpose().cast<float>();
-  cloud->footprint_u.assign(n, Eigen::Vector3f::Zero());
-  cloud->footprint_v.assign(n, Eigen::Vector3f::Zero());
   for (size_t i = 0; i < n; ++i) {
-    if (pixel[i] < 0 || depth[pixel[i]] != in_cam[i].z()) continue;
-    const int x = static_cast<int>(pixel[i] % w);
-    const int y = static_cast<int>(pixel[i] / w);
+    if (px[i] < 0 || cell(px[i], py[i]) != in_cam[i].z()) continue;
+    const int x = px[i], y = py[i];
     // The point as its pixel's centre sees it (the depth map's surface).
     const float z = in_cam[i].z();
     const Eigen::Vector3f p((x - cx) / fx * z, (y - cy) / fy * z, z);

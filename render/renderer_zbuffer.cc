@@ -528,6 +528,29 @@ void RenderZBuffer(const PackedCloud& soa,
       const int m = std::min(kBlock, range.end - base);
       if (footprints) {
         ProjectBlock(soa, base, m, range.proj, &blk);
+        // Most blocks hold no magnified point (seen as at capture or
+        // farther): then every point takes its single pixel, as in the
+        // radius-0 path. The magnification is computed as FootprintHalfExtent
+        // does (same operations), so the decision is the per-point one.
+        const float* fp = soa.footprint.data() + base;
+        bool any_axis = false;
+        if (!soa.footprint_axes.empty()) {
+          const float* e = soa.footprint_axes.data() + 6 * base;
+          for (int k = 0; k < 6 * m; ++k) any_axis |= e[k] != 0.0f;
+        }
+        if (r <= 0 && !any_axis) {
+          float most = 0.0f;
+          for (int k = 0; k < m; ++k) {
+            const float l = blk.ok[k] ? fp[k] * range.footprint_scale *
+                                            range.proj.focal / blk.z[k]
+                                      : 0.0f;
+            most = l > most ? l : most;
+          }
+          if (!(most > 1.05f)) {
+            projected += SplatPoints(&blk, 0, m, base, w, fw, fh, kb);
+            continue;
+          }
+        }
         projected += SplatFootprints(
             blk, m, base, soa.footprint.data() + base,
             soa.footprint_axes.empty() ? nullptr
