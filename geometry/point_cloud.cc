@@ -33,7 +33,16 @@ void PointCloud::Check(const std::string& what) const {
         footprint_u[i].allFinite() && footprint_v[i].allFinite(), what,
         ": point ", i, " has a footprint axis that is not finite");
   }
-  for (size_t i = 0; i < footprints.size(); ++i) {
+  // Branch-free scan (finite and >= 0: sign bit clear, exponent not all
+  // ones), then the first bad one for the message.
+  uint32_t bad_footprint = 0;
+  for (float f : footprints) {
+    uint32_t u;
+    std::memcpy(&u, &f, sizeof u);
+    bad_footprint |=
+        (u >> 31) | static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
+  }
+  for (size_t i = 0; bad_footprint && i < footprints.size(); ++i) {
     GEODRIVE_CHECK_INPUT(std::isfinite(footprints[i]) && footprints[i] >= 0,
                          what, ": point ", i, " has footprint ", footprints[i],
                          " (must be finite and >= 0)");

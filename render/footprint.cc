@@ -25,14 +25,21 @@ void SetCaptureFootprints(const PinholeCamera& camera,
   const Eigen::Vector3d& t = cam_from_world.translation;
   const size_t n = cloud->size();
   cloud->footprints.resize(n);
+  cloud->footprint_u.clear();
+  cloud->footprint_v.clear();
+  if (!surface_axes) {  // the depths alone
+    const Eigen::RowVector3d zrow = r.row(2);
+    for (size_t i = 0; i < n; ++i)
+      cloud->footprints[i] = CaptureFootprint(
+          camera, zrow.dot(cloud->positions[i].cast<double>()) + t.z());
+    return;
+  }
   std::vector<Eigen::Vector3f> in_cam(n);
   for (size_t i = 0; i < n; ++i) {
     in_cam[i] = (r * cloud->positions[i].cast<double>() + t).cast<float>();
     cloud->footprints[i] = CaptureFootprint(camera, in_cam[i].z());
   }
-  cloud->footprint_u.clear();
-  cloud->footprint_v.clear();
-  if (!surface_axes || n == 0) return;
+  if (n == 0) return;
   // The cloud's depth map on the camera's grid (the nearest point per pixel),
   // held over the bounding box of the projected points only (an object's
   // points cover a small part of the image).

@@ -308,6 +308,76 @@ inline bool SplatDisk(
   return hit != 0;
 }
 
+// Camera-facing footprints without a minimum radius (the common case: every
+// static cloud without surface axes, every moved object): the radius-0 path
+// (ProjectPixelsAvx2 where available, then SplatPoints) for the points that
+// are not magnified, and a box (SplatBox) for the magnified ones, whose
+// projection is recomputed with ProjectBlock's operations. The magnification
+// l = fp * scale * focal / z is computed as FootprintHalfExtent does, so the
+// output equals SplatFootprints'. `magnified` holds kBlock entries.
+int64_t SplatCameraFacingFootprints(const PackedCloud& soa,
+                                    int base,
+                                    int m,
+                                    const ProjectedRange& range,
+                                    float max_magnification,
+                                    int w,
+                                    int h,
+                                    ProjectedBlock* blk,
+                                    int* magnified,
+                                    uint64_t* kb) {
+  const FrameProjector& p = range.proj;
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const float* fp = soa.footprint.data() + base;
+  const float scale = range.footprint_scale, focal = p.focal;
+  const bool enabled = max_magnification > 1.0f;
+  int64_t projected = 0;
+  int k0 = 0;
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2())
+    projected += ProjectPixelsAvx2(soa, base, m, p, w, fw, fh, blk, &k0);
+#endif
+  ProjectBlock(soa, base, m, p, blk, k0);
+  int num_magnified = 0;
+  if (enabled) {
+    // [0, k0): blk->ok is the pixel (-1 outside), the key holds z.
+    for (int k = 0; k < k0; ++k) {
+      const float z = BitsFloat(static_cast<uint32_t>(blk->key[k] >> 32));
+      if (!(SignBit(p.near - z) & SignBit(z - p.far))) continue;
+      if (!(fp[k] * scale * focal / z > 1.05f)) continue;
+      magnified[num_magnified++] = k;
+      if (blk->ok[k] >= 0) --projected;  // counted by ProjectPixelsAvx2
+      blk->ok[k] = -1;
+    }
+    // [k0, m): ProjectBlock's u, v, z, ok.
+    for (int k = k0; k < m; ++k) {
+      if (!blk->ok[k] || !(fp[k] * scale * focal / blk->z[k] > 1.05f)) continue;
+      magnified[num_magnified++] = k;
+      blk->ok[k] = 0;
+    }
+  }
+  projected += SplatPoints(blk, k0, m, base, w, fw, fh, kb);
+  const float cap = 0.5f * max_magnification;
+  const float* px = soa.x.data() + base;
+  const float* py = soa.y.data() + base;
+  const float* pz = soa.z.data() + base;
+  for (int j = 0; j < num_magnified; ++j) {
+    const int k = magnified[j];
+    // ProjectBlock's operations, for this point.
+    const float x = px[k], y = py[k], wz = pz[k];
+    const float zc = p.r[6] * x + p.r[7] * y + p.r[8] * wz + p.t[2];
+    const float xc = p.r[0] * x + p.r[1] * y + p.r[2] * wz + p.t[0];
+    const float yc = p.r[3] * x + p.r[4] * y + p.r[5] * wz + p.t[1];
+    const float inv = 1.0f / zc;
+    const float u = p.fx * xc * inv + p.cx, v = p.fy * yc * inv + p.cy;
+    const float l = fp[k] * scale * focal / zc;
+    const float half = std::max(0.5f, std::min(0.5f * l, cap));
+    if (!(u > -half - 1 && u < fw + half && v > -half - 1 && v < fh + half))
+      continue;
+    projected += SplatBox(u, v, half, half, PackKey(zc, base + k), w, h, kb);
+  }
+  return projected;
+}
+
 // Footprint splats of one projected block (render/footprint.h). Point k's
 // half-extents come from its surface axes when it has them (fp_axes[6k..6k+5]
 // not all zero: projected through the Jacobian of the projection at the
@@ -528,10 +598,12 @@ void RenderZBuffer(const PackedCloud& soa,
       const int m = std::min(kBlock, range.end - base);
       if (footprints) {
         ProjectBlock(soa, base, m, range.proj, &blk);
-        // Most blocks hold no magnified point (seen as at capture or
-        // farther): then every point takes its single pixel, as in the
-        // radius-0 path. The magnification is computed as FootprintHalfExtent
-        // does (same operations), so the decision is the per-point one.
+        // Camera-facing footprints only (no surface axes) and no minimum
+        // radius: the magnification of every point in one vectorised pass,
+        // computed as FootprintHalfExtent does (same operations, so the
+        // decisions are the per-point ones); the points that are not
+        // magnified take their single pixel as in the radius-0 path, the
+        // magnified ones (few) a box.
         const float* fp = soa.footprint.data() + base;
         bool any_axis = false;
         if (!soa.footprint_axes.empty()) {
@@ -539,17 +611,10 @@ void RenderZBuffer(const PackedCloud& soa,
           for (int k = 0; k < 6 * m; ++k) any_axis |= e[k] != 0.0f;
         }
         if (r <= 0 && !any_axis) {
-          float most = 0.0f;
-          for (int k = 0; k < m; ++k) {
-            const float l = blk.ok[k] ? fp[k] * range.footprint_scale *
-                                            range.proj.focal / blk.z[k]
-                                      : 0.0f;
-            most = l > most ? l : most;
-          }
-          if (!(most > 1.05f)) {
-            projected += SplatPoints(&blk, 0, m, base, w, fw, fh, kb);
-            continue;
-          }
+          projected += SplatCameraFacingFootprints(
+              soa, base, m, range, max_magnification, w, h, &blk,
+              scratch->magnified.data(), kb);
+          continue;
         }
         projected += SplatFootprints(
             blk, m, base, soa.footprint.data() + base,

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -219,6 +220,10 @@ struct Scratch {
   std::vector<int32_t> cand, order, order_tmp;   // soft: visible points
   std::vector<uint32_t> zbits, zbits_tmp, hist;  // soft: radix sort
   std::vector<int32_t> index;  // resolved point index per pixel (-1 = none)
+  // zbuffer, footprint splats: per point of a block its magnification, and
+  // the magnified points' entries.
+  std::array<float, kBlock> magnification;
+  std::array<int, kBlock> magnified;
 };
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
