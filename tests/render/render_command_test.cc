@@ -160,6 +160,51 @@ TEST(RenderCommand, ShiftAndCompatPreset) {
   EXPECT_EQ(f0.cols, 1024);
 }
 
+// The footprint preset: driving forward into the image + depth scene keeps
+// it closed where the paper preset opens holes, frame 0 is the same, and the
+// options that contradict it are one-line errors.
+TEST(RenderCommand, FootprintPresetKeepsTheApproachedSceneClosed) {
+  const std::string dir = test::MakeTempDir("render_cmd_footprint");
+  const Inputs in = WriteInputs(dir);
+  const std::string base =
+      test::GeodriveBinary() + " render --image " + in.image + " --depth " +
+      in.depth + " --intrinsics " + in.intrinsics + " --trajectory " +
+      in.trajectory + " --size 160x256 --no-video --frames";
+  std::string log;
+  nlohmann::json reports[2];
+  for (int k = 0; k < 2; ++k) {
+    const std::string out = dir + (k ? "/footprint" : "/paper");
+    ASSERT_EQ(
+        test::RunCommand(
+            base + (k ? " --preset footprint" : "") + " --out " + out, &log),
+        0)
+        << log;
+    std::ifstream rj(out + "/render.json");
+    reports[k] = nlohmann::json::parse(rj);
+  }
+  EXPECT_EQ(reports[1]["preset"], "footprint");
+  EXPECT_EQ(reports[1]["options"]["splat_size"], "footprint");
+  EXPECT_EQ(reports[1]["options"]["max_footprint_magnification"], 8.0);
+  EXPECT_EQ(reports[0]["options"]["splat_size"], "fixed");
+  const double paper0 = reports[0]["frames"][0]["coverage"];
+  const double foot0 = reports[1]["frames"][0]["coverage"];
+  const double paper5 = reports[0]["frames"][5]["coverage"];
+  const double foot5 = reports[1]["frames"][5]["coverage"];
+  EXPECT_EQ(paper0, foot0);  // seen as captured: one pixel per point
+  EXPECT_GT(foot5, paper5 + 0.1) << paper5 << " " << foot5;
+  const cv::Mat p0 = ReadImageRgb(dir + "/paper/frames/render_0000.png");
+  const cv::Mat f0 = ReadImageRgb(dir + "/footprint/frames/render_0000.png");
+  EXPECT_EQ(cv::norm(p0, f0, cv::NORM_INF), 0.0);
+  // Contradicting options: one line, exit 2.
+  for (const std::string bad :
+       {" --preset footprint --mode soft", " --preset footprint --radius 2",
+        " --preset footprint --max-magnification 0.5"}) {
+    EXPECT_EQ(test::RunCommand(base + bad + " --out " + dir + "/bad", &log), 2)
+        << bad << ": " << log;
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+  }
+}
+
 TEST(RenderCommand, BadInputExitsTwoWithOneLine) {
   const std::string dir = test::MakeTempDir("render_cmd_bad");
   const Inputs in = WriteInputs(dir);
