@@ -181,6 +181,16 @@ CommandRunner Setup(CLI::App& app) {
               {"explicit", LidarWindow::kExplicit}},
           CLI::ignore_case))
       ->capture_default_str();
+  app.add_option("--lidar-objects", o.lidar_dense_objects,
+                 "lidar-dense geometry: returns inside annotated boxes: remove "
+                 "(the static scene; default) or frame0 (kept from the "
+                 "frame-0 sweep, so the dynamic editor moves them)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, LidarObjects>{
+              {"remove", LidarObjects::kRemove},
+              {"frame0", LidarObjects::kFrame0}},
+          CLI::ignore_case))
+      ->default_str("remove");
   app.add_option("--lidar-dense-width", o.lidar_dense_width,
                  "lidar-dense geometry: width (px) of the completed frame-0 "
                  "depth (the frame-0 camera scaled to it)")

@@ -135,6 +135,9 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   if (SceneSourceName() == "lidar-dense") {
     j["lidar_dense_window"] = ToString(lidar_dense_window);
     j["lidar_dense_width"] = lidar_dense_width;
+    // Only when not the default, so that earlier pairs keep their hash.
+    if (lidar_dense_objects != LidarObjects::kRemove)
+      j["lidar_dense_objects"] = ToString(lidar_dense_objects);
   }
   return j.dump();
 }

@@ -99,6 +99,9 @@ struct BuildDatasetOptions {
   // clip: the whole clip; explicit: the window above) and the width of the
   // completed frame-0 depth (dataset/scene_source.h).
   LidarWindow lidar_dense_window = LidarWindow::kCausal;
+  // lidar-dense: the returns inside annotated boxes (removed, or kept from
+  // the frame-0 sweep).
+  LidarObjects lidar_dense_objects = LidarObjects::kRemove;
   int lidar_dense_width = 800;
   // MonST3R geometry: refine the poses by reprojection over static pixels
   // (paper eq. 3) before rendering; meta.json reports the RMS before/after.

@@ -202,6 +202,7 @@ ConditionScene BuildClipScene(const DriveClip& clip,
   so.lidar_window_before_s = opt.lidar_window_before_s;
   so.lidar_window_after_s = opt.lidar_window_after_s;
   so.dense_window = opt.lidar_dense_window;
+  so.dense_objects = opt.lidar_dense_objects;
   so.dense_width = opt.lidar_dense_width;
   so.refine_poses = opt.refine_poses;
   ConditionScene scene = BuildConditionScene(name, in, so);

@@ -79,6 +79,16 @@ LidarWindow ParseLidarWindow(const std::string& text) {
                    "': expected causal, clip or explicit");
 }
 
+std::string ToString(LidarObjects objects) {
+  return objects == LidarObjects::kRemove ? "remove" : "frame0";
+}
+
+LidarObjects ParseLidarObjects(const std::string& text) {
+  if (text == "remove") return LidarObjects::kRemove;
+  if (text == "frame0") return LidarObjects::kFrame0;
+  throw InputError("LiDAR objects '" + text + "': expected remove or frame0");
+}
+
 std::vector<std::string> SceneSourceNames() {
   std::vector<std::string> names;
   for (const Entry& e : Registry()) names.push_back(e.name);

@@ -50,6 +50,22 @@ enum class LidarWindow {
 std::string ToString(LidarWindow window);
 LidarWindow ParseLidarWindow(const std::string& text);
 
+// What lidar-dense does with the returns inside annotated boxes (vehicles,
+// pedestrians, ...).
+enum class LidarObjects {
+  // Dropped from every sweep: the static scene only (the objects' pixels
+  // stay empty).
+  kRemove,
+  // Kept from the frame-0 sweep only (aggregating a moving object over
+  // several sweeps would smear it): the objects are part of frame 0's
+  // pointmap, as in a reconstruction's, and the dynamic editor moves them
+  // along their boxes.
+  kFrame0,
+};
+// "remove", "frame0"; Parse throws InputError for other text.
+std::string ToString(LidarObjects objects);
+LidarObjects ParseLidarObjects(const std::string& text);
+
 // How a trajectory given by the user is placed in the scene frame.
 enum class TrajectoryAnchor {
   // Its poses are in the scene frame as given (a cloud file and a trajectory
@@ -146,6 +162,8 @@ struct SceneSourceOptions {
   // lidar-dense: the window policy (the "lidar" source always uses
   // [t0 - before, t0 + after]).
   LidarWindow dense_window = LidarWindow::kCausal;
+  // lidar-dense: the returns inside annotated boxes.
+  LidarObjects dense_objects = LidarObjects::kRemove;
   // lidar-dense: width (pixels) of the frame-0 depth image that is completed
   // and unprojected (the frame-0 camera scaled to it; 0 = the camera's own).
   int dense_width = 800;

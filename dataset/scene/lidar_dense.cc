@@ -45,6 +45,19 @@ std::pair<int64_t, int64_t> WindowOf(const DriveClip& clip,
   return {lo, t0 + kSweepPeriodUs};
 }
 
+// The frame-0 sweep: the keyframe sweep of frame 0, or the last sweep at or
+// before it; nullopt when there is none.
+std::optional<size_t> FrameZeroSweep(const DriveClip& clip) {
+  const DriveFrame& f0 = clip.frames.front();
+  const std::vector<LidarSweepInfo>& sweeps = clip.lidar->Sweeps();
+  if (f0.keyframe_sweep && *f0.keyframe_sweep < sweeps.size())
+    return f0.keyframe_sweep;
+  std::optional<size_t> last;
+  for (size_t i = 0; i < sweeps.size(); ++i)
+    if (sweeps[i].timestamp_us <= f0.timestamp_us) last = i;
+  return last;
+}
+
 // Accuracy of the completion on the frame-0 sweep (the keyframe sweep of
 // frame 0, or the last sweep at or before it): a seeded 20 % of its returns
 // that project into the camera held out, the rest completed (KITTI depth
@@ -54,18 +67,11 @@ std::optional<DepthCompletionAccuracy> FrameZeroHoldOut(
     const DriveClip& clip,
     const PinholeCamera& camera,
     const SceneSourceOptions& options) {
-  const DriveFrame& f0 = clip.frames.front();
-  const std::vector<LidarSweepInfo>& sweeps = clip.lidar->Sweeps();
-  std::optional<int64_t> ts;
-  if (f0.keyframe_sweep && *f0.keyframe_sweep < sweeps.size()) {
-    ts = sweeps[*f0.keyframe_sweep].timestamp_us;
-  } else {
-    for (const LidarSweepInfo& s : sweeps)
-      if (s.timestamp_us <= f0.timestamp_us) ts = s.timestamp_us;
-  }
-  if (!ts) return std::nullopt;
+  const std::optional<size_t> s = FrameZeroSweep(clip);
+  if (!s) return std::nullopt;
+  const int64_t ts = clip.lidar->Sweeps()[*s].timestamp_us;
   std::vector<int64_t> times;
-  const PointCloud sweep = AggregateStaticSweeps(clip, *ts, *ts, &times);
+  const PointCloud sweep = AggregateStaticSweeps(clip, ts, ts, &times);
   const cv::Mat sparse = SparseDepthImage(sweep.positions, camera);
   if (cv::countNonZero(sparse) < 10) return std::nullopt;
   return HoldOutAccuracy(sparse, 0.2, kHoldOutSeed, options.completion);
@@ -103,7 +109,11 @@ class LidarDenseSceneSource : public SceneSource {
 
     const auto [lo, hi] = WindowOf(clip, options);
     std::vector<int64_t> point_time;
-    const PointCloud sweeps = AggregateStaticSweeps(clip, lo, hi, &point_time);
+    const std::optional<size_t> frame0_sweep = FrameZeroSweep(clip);
+    const PointCloud sweeps = AggregateStaticSweeps(
+        clip, lo, hi, &point_time,
+        options.dense_objects == LidarObjects::kFrame0 ? frame0_sweep
+                                                       : std::nullopt);
     const cv::Mat sparse = SparseDepthImage(sweeps.positions, camera);
     DepthCompletionReport report;
     const cv::Mat dense = CompleteDepth(sparse, options.completion, &report);
@@ -138,8 +148,9 @@ class LidarDenseSceneSource : public SceneSource {
     scene.completion_sparse = sparse;
     scene.completion_dense = dense;
     scene.description = "LiDAR of " + clip.id + ", " +
-                        ToString(options.dense_window) +
-                        " window, completed: " + report.BriefReport();
+                        ToString(options.dense_window) + " window, objects " +
+                        ToString(options.dense_objects) +
+                        ", completed: " + report.BriefReport();
     return scene;
   }
 };

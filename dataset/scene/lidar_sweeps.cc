@@ -9,7 +9,8 @@ namespace geodrive {
 PointCloud AggregateStaticSweeps(const DriveClip& clip,
                                  int64_t lo,
                                  int64_t hi,
-                                 std::vector<int64_t>* point_time) {
+                                 std::vector<int64_t>* point_time,
+                                 std::optional<size_t> keep_objects_of) {
   const LidarProvider& lidar = *clip.lidar;
   // [R | t]: one matrix product per point instead of a quaternion rotation
   // (these loops run over every point of every sweep, and every frame).
@@ -21,7 +22,8 @@ PointCloud AggregateStaticSweeps(const DriveClip& clip,
     const LidarSweepInfo& info = lidar.Sweeps()[s];
     const PointCloud sweep = lidar.Load(s);
     const Matrix3x4d world_from_lidar = info.WorldFromSensor().ToMatrix3x4();
-    const std::vector<ClipBox> boxes = lidar.Boxes(s);
+    const std::vector<ClipBox> boxes =
+        keep_objects_of == s ? std::vector<ClipBox>() : lidar.Boxes(s);
     // Each box's bounding sphere (grown by the margin): the exact test runs
     // only for points inside it.
     std::vector<double> radius2(boxes.size());

@@ -365,6 +365,35 @@ TEST(LidarDenseSynthetic, RendersAlongTheTrueTrajectoryBesideMonst3r) {
   EXPECT_GT(s[0][1].mean_psnr, 18.0);
 }
 
+// --lidar-objects frame0: the returns inside the boxes of the frame-0 sweep
+// (pedestrians at the bus stop, parked cars) are kept, from that sweep only.
+TEST(LidarDenseReal, ObjectsOfTheFrame0SweepAreKeptOnRequest) {
+  const auto d = OpenScene0916();
+  const DriveClip clip = d->LoadClip("scene-0916_0006_kf");
+  ASSERT_TRUE(clip.lidar && clip.frames.front().keyframe_sweep);
+  const size_t s0 = *clip.frames.front().keyframe_sweep;
+  const int64_t ts = clip.lidar->Sweeps()[s0].timestamp_us;
+  std::vector<int64_t> times;
+  const size_t without = AggregateStaticSweeps(clip, ts, ts, &times).size();
+  times.clear();
+  const size_t with = AggregateStaticSweeps(clip, ts, ts, &times, s0).size();
+  std::printf("frame-0 sweep: %zu static returns, %zu in boxes\n", without,
+              with - without);
+  EXPECT_GT(with, without + 500);  // measured: 2,000+ returns in boxes
+  SceneInputs in;
+  in.clip = &clip;
+  SceneSourceOptions options;
+  const ConditionScene removed =
+      BuildConditionScene("lidar-dense", in, options);
+  options.dense_objects = LidarObjects::kFrame0;
+  const ConditionScene kept = BuildConditionScene("lidar-dense", in, options);
+  ASSERT_TRUE(removed.completion && kept.completion);
+  EXPECT_GT(kept.completion->input_pixels, removed.completion->input_pixels);
+  EXPECT_NE(kept.description.find("objects frame0"), std::string::npos);
+  EXPECT_EQ(ParseLidarObjects("frame0"), LidarObjects::kFrame0);
+  EXPECT_THROW(ParseLidarObjects("keep"), InputError);
+}
+
 // The acceptance command on the real scene: every keyframe clip builds with
 // lidar-dense, meta.json records support and coverage, and frame 0 is
 // covered where the LiDAR reaches (vs 0.13-0.18 for the sparse source).
