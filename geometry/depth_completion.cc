@@ -111,6 +111,40 @@ void InterpolatePlanes(cv::Mat* inverted,
   cv::transpose(t, *inverted);
 }
 
+// Step 5b (see the header): per column of the transposed image, the empty
+// pixels below the envelope: between two completed ones, along the line
+// through their inverse depths; below the lowest, its depth.
+void FillSupportedGaps(cv::Mat* inverted,
+                       const std::vector<int>& envelope,
+                       double max_depth,
+                       double per_metre) {
+  cv::Mat t;
+  cv::transpose(*inverted, t);
+  auto inv_depth = [&](uint16_t level) {
+    return 1.0 / std::max(1e-3, max_depth - (level - 1) / per_metre);
+  };
+  auto level_of = [&](double inv) {
+    return static_cast<uint16_t>(std::clamp<long>(
+        std::lround((max_depth - 1.0 / inv) * per_metre) + 1, 1, 65535));
+  };
+  for (int x = 0; x < t.rows; ++x) {
+    uint16_t* col = t.ptr<uint16_t>(x);
+    int last = -1;  // the last completed row at or below the envelope
+    for (int y = std::max(0, envelope[x]); y < t.cols; ++y) {
+      if (col[y] == 0) continue;
+      if (last >= 0 && y - last > 1) {
+        const double a = inv_depth(col[last]), b = inv_depth(col[y]);
+        for (int k = last + 1; k < y; ++k)
+          col[k] = level_of(a + (b - a) * (k - last) / (y - last));
+      }
+      last = y;
+    }
+    if (last >= 0)
+      for (int y = last + 1; y < t.cols; ++y) col[y] = col[last];
+  }
+  cv::transpose(t, *inverted);
+}
+
 // Per column, the first supported row: the top-most return within
 // +-half_width columns (rows() when none).
 std::vector<int> SupportEnvelope(const cv::Mat& sparse, int half_width) {
@@ -232,6 +266,8 @@ cv::Mat CompleteDepth(const cv::Mat& sparse,
   }
   const std::vector<int> envelope =
       SupportEnvelope(sparse, options.envelope_half_width);
+  if (options.fill_supported_gaps)
+    FillSupportedGaps(&inverted, envelope, options.max_depth_m, per_metre);
   cv::Mat dense(sparse.size(), CV_32F, cv::Scalar(0));
   int64_t supported = 0, completed_supported = 0, completed = 0;
   // Bottom to top, row by row (cache order); per column the depth of the

@@ -22,6 +22,10 @@
 //      (31x31): the gaps between scan lines;
 //   5. median blur 5x5, then Gaussian blur 5x5, each applied only to filled
 //      pixels (outlier removal and smoothing);
+//   5b. (ours, on by default) pixels below the envelope still empty (gaps
+//      wider than the large kernel, the rows under the lowest scan line) are
+//      filled along each column: between two completed pixels along the
+//      line through their inverse depths, below the lowest with its depth;
 //   6. invert back; keep only pixels below the support envelope.
 // The support envelope: for each column, the top-most pixel with a LiDAR
 // return within +-envelope_half_width columns. The LiDAR's top beam is about
@@ -66,6 +70,8 @@ struct DepthCompletionOptions {
   int gaussian_kernel = 5;
   // Half width (pixels) of the column window of the support envelope.
   int envelope_half_width = 8;
+  // Step 5b: fill the supported pixels still empty along their column.
+  bool fill_supported_gaps = true;
   // Extend each column's top-most completed depth up to the image top (off:
   // pixels above the envelope stay empty).
   bool fill_above_envelope = false;
