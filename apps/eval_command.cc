@@ -18,6 +18,7 @@
 #include "eval/report.h"
 #include "eval/trajectory_metrics.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 #include "render/video/video_io.h"
@@ -123,15 +124,17 @@ void EvaluateTrajectories(const EvalArgs& args, EvalReport* report) {
   GEODRIVE_CHECK_INPUT(!args.pred_traj.empty() && !args.gt_traj.empty(),
                        "--pred-traj and --gt-traj are required for ade/fde");
   auto read = [&](const std::string& path) {
-    return args.traj_format == "monst3r" ? ReadMonst3rTrajectory(path)
-                                         : ReadTumTrajectory(path);
+    // The default "tum" keeps its meaning for any file name; "auto" detects
+    // (geometry/trajectory_json.h: MonST3R, COLMAP, KITTI, reconstructions).
+    return ReadTrajectoryAny(path, ParseTrajectoryFormat(args.traj_format));
   };
   const Trajectory pred = read(args.pred_traj), gt = read(args.gt_traj);
   TrajectoryErrorOptions options;
   options.alignment = ParseAlignmentType(args.align);
   options.units = !args.units.empty()             ? args.units
                   : args.traj_format == "monst3r" ? "MonST3R units"
-                                                  : "units of the TUM files";
+                  : args.traj_format == "kitti"   ? "metres"
+                                                  : "units of the files";
   TrajectoryErrors errors = ComputeTrajectoryErrors(pred, gt, options);
   report->gt_centres = CameraCentres(gt);
   for (const Eigen::Vector3d& c : CameraCentres(pred)) {
@@ -332,9 +335,13 @@ CommandRunner SetupEval(CLI::App& app) {
                  "Predicted trajectory (TUM, or see --traj-format)");
   app.add_option("--gt-traj", args->gt_traj, "Ground-truth trajectory");
   app.add_option("--traj-format", args->traj_format,
-                 "tum (t x y z qx qy qz qw) or monst3r (pred_traj.txt: t x y z "
-                 "qw qx qy qz)")
-      ->check(CLI::IsMember({"tum", "monst3r"}))
+                 "tum (t x y z qx qy qz qw), monst3r (pred_traj.txt: t x y z "
+                 "qw qx qy qz), kitti (12 numbers per line, world_from_cam0; "
+                 "times.txt beside it), colmap (images.txt, w2c), "
+                 "reconstruction (the camera track of a VGGT/DA3/MegaSaM/"
+                 "generic npz or a CUT3R/MonST3R folder) or auto")
+      ->check(CLI::IsMember(
+          {"tum", "monst3r", "kitti", "colmap", "reconstruction", "auto"}))
       ->capture_default_str();
   app.add_option("--units", args->units,
                  "Name of the trajectory units for the report");

@@ -8,8 +8,11 @@
 #include "apps/cli/cli.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
+#include "geometry/npz.h"
 #include "geometry/point_cloud_io.h"
+#include "geometry/reconstruction.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
@@ -57,11 +60,72 @@ void PrintCloud(const std::string& path,
   std::cout << "  colors: " << (cloud.HasColors() ? "yes" : "no") << "\n";
 }
 
-int RunInfo(const std::string& path, const std::string& format) {
+// A reconstruction tool's output (geometry/reconstruction.h): what it is and
+// how it is converted.
+void PrintReconstruction(const std::string& path, ReconstructionFormat format) {
+  const auto reader = CreateReconstructionReader(format);
+  const Monst3rFolder r = reader->Read(path, ReconstructionReadOptions());
+  const PinholeCamera& c = r.cameras().front();
+  std::cout << path << ": " << reader->ToolName() << " reconstruction ("
+            << ToString(format) << "), " << r.num_frames() << " frames, grid "
+            << r.width() << "x" << r.height() << " ("
+            << ToString(r.grid_resize()) << " resize of the source image), "
+            << (r.units() == "metres" ? "metric depth" : "depth up to scale")
+            << "\n"
+            << std::fixed << std::setprecision(2) << "  frame 0: fx " << c.fx
+            << " fy " << c.fy << " cx " << c.cx << " cy " << c.cy
+            << "; images: " << (r.has_rgb() ? "yes" : "no")
+            << "; confidence: " << (r.has_confidence() ? "yes" : "no") << "\n";
+  const ReconstructionConventions k = reader->Conventions();
+  std::cout << "  poses: " << k.pose << "\n  confidence: " << k.confidence
+            << "\n  intrinsics: " << k.intrinsics << "\n  units: " << k.units
+            << "\n";
+}
+
+int RunInfo(const std::string& path,
+            const std::string& format,
+            const std::string& to_tum) {
   GEODRIVE_CHECK_INPUT(std::filesystem::exists(path), path, ": no such file");
-  GEODRIVE_CHECK_INPUT(!std::filesystem::is_directory(path), path,
-                       ": is a directory (expected a file)");
+  if (!to_tum.empty()) {
+    const TrajectoryFormat f = format == "auto" || format == "intrinsics"
+                                   ? TrajectoryFormat::kAuto
+                                   : ParseTrajectoryFormat(format);
+    const Trajectory t = ReadTrajectoryAny(path, f);
+    WriteTumTrajectory(to_tum, t);
+    std::cout << to_tum << ": " << t.size()
+              << " poses written as TUM (t x y z qx qy qz qw, evo's order)\n";
+    return kExitOk;
+  }
+  if (std::filesystem::is_directory(path)) {
+    const auto recon = DetectReconstructionFormat(path);
+    GEODRIVE_CHECK_INPUT(recon, path,
+                         ": is a directory, and not a reconstruction folder "
+                         "(MonST3R, CUT3R, or one holding a VGGT, DA3, "
+                         "MegaSaM or generic npz)");
+    PrintReconstruction(path, *recon);
+    return kExitOk;
+  }
   const std::string name = std::filesystem::path(path).filename().string();
+  if (EndsWith(name, ".npz")) {
+    if (const auto recon = DetectReconstructionFormat(path)) {
+      PrintReconstruction(path, *recon);
+      return kExitOk;
+    }
+    const NpzReader npz(path);
+    std::cout << path << ": npz archive, " << npz.Keys().size()
+              << " arrays (no reconstruction format: see `geodrive info "
+                 "--help`)\n";
+    for (const std::string& key : npz.Keys()) {
+      try {
+        const NpyHeader h = npz.Header(key);
+        std::cout << "  " << key << ": " << NpyDtypeDescr(h.dtype) << " "
+                  << ShapeString(h.shape) << "\n";
+      } catch (const InputError&) {
+        std::cout << "  " << key << ": (a dtype this reader does not take)\n";
+      }
+    }
+    return kExitOk;
+  }
   if (EndsWith(name, ".npy")) {
     // The header only, and the file size against the data it declares:
     // describing a 4 GB array does not read it.
@@ -106,14 +170,8 @@ int RunInfo(const std::string& path, const std::string& format) {
   }
   if (EndsWith(name, ".txt")) {
     std::string fmt = format;
-    if (fmt == "auto") {
-      if (name.find("intrinsics") != std::string::npos)
-        fmt = "intrinsics";
-      else if (name == "pred_traj.txt")
-        fmt = "monst3r";
-      else
-        fmt = "tum";
-    }
+    if (fmt == "auto" && name.find("intrinsics") != std::string::npos)
+      fmt = "intrinsics";
     if (fmt == "intrinsics") {
       const auto cams = ReadMonst3rIntrinsics(path, 1, 1);
       std::cout << path << ": MonST3R intrinsics, " << cams.size() << " frames";
@@ -123,36 +181,52 @@ int RunInfo(const std::string& path, const std::string& format) {
       std::cout << "\n";
       return kExitOk;
     }
-    const Trajectory traj = fmt == "monst3r" ? ReadMonst3rTrajectory(path)
-                                             : ReadTumTrajectory(path);
-    std::cout << path << ": "
-              << (fmt == "monst3r" ? "MonST3R trajectory (t x y z qw qx qy qz)"
-                                   : "TUM trajectory (t x y z qx qy qz qw)")
-              << ", " << traj.size() << " poses, length " << traj.Length()
-              << ", duration " << traj.Duration() << "\n";
+    const TrajectoryFormat f = fmt == "auto" ? DetectTrajectoryFormat(path)
+                                             : ParseTrajectoryFormat(fmt);
+    const Trajectory traj = ReadTrajectoryAny(path, f);
+    const char* kind =
+        f == TrajectoryFormat::kMonst3r ? "MonST3R trajectory (t x y z qw qx "
+                                          "qy qz)"
+        : f == TrajectoryFormat::kKitti ? "KITTI odometry poses (3x4 "
+                                          "world_from_cam0 per line)"
+        : f == TrajectoryFormat::kColmap
+            ? "COLMAP images.txt (cam_from_world, QW first)"
+            : "TUM trajectory (t x y z qx qy qz qw)";
+    std::cout << path << ": " << kind << ", " << traj.size()
+              << " poses, length " << traj.Length() << ", duration "
+              << traj.Duration() << "\n";
     return kExitOk;
   }
   ThrowInputError(
       path,
-      "unknown file type (expected .npy, .pcd.bin, .bin, .ply, .pcd, .png, "
-      ".jpg or a .txt trajectory)");
+      "unknown file type (expected .npy, .npz, .pcd.bin, .bin, .ply, .pcd, "
+      ".png, .jpg, a .txt trajectory or a reconstruction folder)");
 }
 
 CommandRunner SetupInfo(CLI::App& app) {
   auto path = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("auto");
   app.add_option("file", *path,
-                 "File to describe (.npy, .pcd.bin, .bin, .ply, .pcd, image, "
-                 "trajectory .txt)")
+                 "File to describe (.npy, .npz, .pcd.bin, .bin, .ply, .pcd, "
+                 "image, trajectory .txt), or a reconstruction: a MonST3R or "
+                 "CUT3R folder, VGGT predictions.npz, Depth Anything 3 "
+                 "results.npz, MegaSaM *_sgd_cvd_hr.npz / *_droid.npz, our "
+                 "generic npz (docs/RECONSTRUCTIONS.md)")
       ->required();
   app.add_option("--format", *format,
                  "For .txt files: monst3r (t x y z qw qx qy qz), tum (t x y z "
-                 "qx qy qz qw), "
-                 "intrinsics, or auto (pred_traj.txt = monst3r, *intrinsics* = "
-                 "intrinsics, "
-                 "else tum)")
-      ->check(CLI::IsMember({"auto", "monst3r", "tum", "intrinsics"}));
-  return [path, format] { return RunInfo(*path, *format); };
+                 "qx qy qz qw), kitti (12 numbers per line), colmap "
+                 "(images.txt), intrinsics, or auto (pred_traj.txt = "
+                 "monst3r, images.txt = colmap, *intrinsics* = intrinsics, "
+                 "12 numbers per row = kitti, else tum)")
+      ->check(CLI::IsMember({"auto", "monst3r", "tum", "kitti", "colmap",
+                             "reconstruction", "intrinsics"}));
+  auto to_tum = std::make_shared<std::string>();
+  app.add_option("--to-tum", *to_tum,
+                 "Write the trajectory of FILE (any format --format takes, a "
+                 "reconstruction's camera track included) as TUM `t x y z qx "
+                 "qy qz qw` (evo's order) to this path");
+  return [path, format, to_tum] { return RunInfo(*path, *format, *to_tum); };
 }
 
 }  // namespace
@@ -160,7 +234,8 @@ CommandRunner SetupInfo(CLI::App& app) {
 GEODRIVE_REGISTER_COMMAND(
     info,
     "info",
-    "Print what a file is (npy, point cloud, trajectory, image)",
+    "Print what a file is (npy, npz, point cloud, trajectory, image, "
+    "reconstruction)",
     SetupInfo);
 
 }  // namespace geodrive

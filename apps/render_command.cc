@@ -32,6 +32,7 @@
 #include "apps/cli/edit_args.h"
 #include "dataset/scene_source.h"
 #include "geometry/image_io.h"
+#include "geometry/reconstruction.h"
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
@@ -49,7 +50,7 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 struct RenderArgs {
-  std::string cloud, image, depth, intrinsics, monst3r, trajectory, out;
+  std::string cloud, image, depth, intrinsics, monst3r, scene, trajectory, out;
   std::string trajectory_format = "auto";
   std::string mode, preset = "paper", size;
   // Overrides of the preset's values (absent: the preset's).
@@ -140,6 +141,22 @@ RenderInput LoadRenderInput(const RenderArgs& a, const RenderOptions& options) {
     in.path = a.depth;
     in.image_path = a.image;
     in.intrinsics_path = a.intrinsics;
+  } else if (!a.scene.empty()) {
+    // TOOL:PATH, or a PATH whose format is recognised.
+    const size_t colon = a.scene.find(':');
+    if (colon != std::string::npos &&
+        a.scene.find('/') > colon) {  // "vggt:out/predictions.npz"
+      source = ToString(ParseReconstructionFormat(a.scene.substr(0, colon)));
+      in.path = a.scene.substr(colon + 1);
+    } else {
+      const auto format = DetectReconstructionFormat(a.scene);
+      GEODRIVE_CHECK_INPUT(format, a.scene,
+                           ": not a reconstruction this reader recognises; "
+                           "name the tool as TOOL:PATH (monst3r, vggt, da3, "
+                           "cut3r, megasam, npz)");
+      source = ToString(*format);
+      in.path = a.scene;
+    }
   } else {
     source = "monst3r";
     in.path = a.monst3r;
@@ -191,8 +208,9 @@ json RenderReport(const RenderArgs& a,
                   json report) {
   const PinholeCamera& camera = in.camera;
   report["input"] = in.scene.description;
-  report["trajectory"] =
-      a.trajectory.empty() ? a.monst3r + "/pred_traj.txt" : a.trajectory;
+  report["trajectory"] = !a.trajectory.empty() ? a.trajectory
+                         : !a.scene.empty()    ? a.scene + " (its camera poses)"
+                                               : a.monst3r + "/pred_traj.txt";
   report["units"] = in.units;
   report["edits"] = a.edits.Describe();
   if (!dynamic_edit.is_null()) report["dynamic_edit"] = dynamic_edit;
@@ -340,20 +358,21 @@ std::vector<char> ContactSheetSelection(int num_frames) {
 
 // Checks the command line's combination of inputs (RunRender's first step).
 void CheckRenderArgs(const RenderArgs& a) {
-  const int sources = !a.cloud.empty() + !a.image.empty() + !a.monst3r.empty();
+  const int sources = !a.cloud.empty() + !a.image.empty() + !a.monst3r.empty() +
+                      !a.scene.empty();
   GEODRIVE_CHECK_INPUT(
       sources == 1,
-      "give exactly one input: --cloud, --image (with --depth, --intrinsics) "
-      "or --monst3r");
+      "give exactly one input: --cloud, --image (with --depth, --intrinsics), "
+      "--monst3r or --scene");
   if (!a.image.empty()) {
     GEODRIVE_CHECK_INPUT(
         !a.depth.empty() && !a.intrinsics.empty(),
         "--image needs --depth DEPTH.npy and --intrinsics K.txt");
   }
   GEODRIVE_CHECK_INPUT(
-      !a.trajectory.empty() || !a.monst3r.empty(),
-      "--trajectory is required (except with --monst3r, which defaults to "
-      "its pred_traj.txt)");
+      !a.trajectory.empty() || !a.monst3r.empty() || !a.scene.empty(),
+      "--trajectory is required (except with --monst3r or --scene, which "
+      "default to the reconstruction's own camera poses)");
   GEODRIVE_CHECK_INPUT(!a.dynamic.boxes_path.empty() ||
                            (a.dynamic.remove.empty() &&
                             a.dynamic.insert.empty() && a.dynamic.move.empty()),
@@ -519,14 +538,23 @@ CommandRunner SetupRender(CLI::App& app) {
                  "MonST3R output folder: renders frame 0's pointmap (no "
                  "confidence threshold, as "
                  "released) along pred_traj.txt or --trajectory");
+  app.add_option("--scene", a->scene,
+                 "A reconstruction tool's output as TOOL:PATH (monst3r, vggt, "
+                 "da3, cut3r, megasam, npz; docs/RECONSTRUCTIONS.md) or a "
+                 "PATH whose format is recognised: frame 0's depth rendered "
+                 "(no confidence threshold) along the tool's poses or "
+                 "--trajectory");
   app.add_option(
       "--trajectory", a->trajectory,
       "Trajectory: .json (geodrive), pred_traj.txt (MonST3R, w first) or TUM "
       ".txt (w "
       "last). With --image/--monst3r it is taken relative to its first frame");
   app.add_option("--trajectory-format", a->trajectory_format,
-                 "auto, json, tum or monst3r")
-      ->check(CLI::IsMember({"auto", "json", "tum", "monst3r"}))
+                 "auto, json, tum, monst3r, kitti (12 numbers per line), "
+                 "colmap (images.txt) or reconstruction (a tool's camera "
+                 "track: .npz or folder)")
+      ->check(CLI::IsMember({"auto", "json", "tum", "monst3r", "kitti",
+                             "colmap", "reconstruction"}))
       ->capture_default_str();
   app.add_option(
       "--shift-left", a->edits.shift_left,

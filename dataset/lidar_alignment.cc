@@ -95,13 +95,13 @@ ClipScaleReport FitClipLidarScale(const DriveClip& clip,
         cam_frame.world_from_ego, cam_frame.ego_from_cam, cam.K(), cam.width,
         cam.height, options.projection);
     fr.points_in_image = static_cast<int>(proj.size());
-    const ImageResizeSpec spec =
-        ComputeMonst3rResizeSpec(cam.width, cam.height, 512);
+    const ImageResizeSpec spec = monst3r.SourceToGrid(cam.width, cam.height);
     GEODRIVE_CHECK_INPUT(
         spec.width == monst3r.width() && spec.height == monst3r.height(),
-        monst3r.dir(), ": MonST3R images are ", monst3r.width(), "x",
-        monst3r.height(), " but the camera's ", cam.width, "x", cam.height,
-        " maps to ", spec.width, "x", spec.height);
+        monst3r.dir(), ": ", monst3r.format(), " images are ", monst3r.width(),
+        "x", monst3r.height(), " but the camera's ", cam.width, "x", cam.height,
+        " maps to ", spec.width, "x", spec.height, " (",
+        ToString(monst3r.grid_resize()), ")");
     const Monst3rFrame frame = monst3r.LoadFrame(i, load);
     const cv::Mat& mask = !options.skip_dynamic ? cv::Mat()
                           : options.use_enlarged_masks

@@ -155,6 +155,120 @@ cv::Mat ConfidenceMapToUnit(const cv::Mat& confidence,
   return out;
 }
 
+std::string ToString(GridResize resize) {
+  switch (resize) {
+    case GridResize::kMonst3r:
+      return "monst3r-512";
+    case GridResize::kVggt:
+      return "vggt-518";
+    case GridResize::kStretch:
+      return "stretch";
+  }
+  return "?";
+}
+
+ImageResizeSpec ComputeGridResizeSpec(GridResize rule,
+                                      int in_width,
+                                      int in_height) {
+  switch (rule) {
+    case GridResize::kMonst3r:
+      return ComputeMonst3rResizeSpec(in_width, in_height, 512);
+    case GridResize::kVggt: {
+      // vggt/utils/load_fn.py, mode "crop": new_width = 518, new_height =
+      // round(height * (518 / width) / 14) * 14, then a centre crop of the
+      // height to 518 (start_y = (new_height - 518) // 2).
+      ImageResizeSpec s;
+      s.resized_width = 518;
+      s.resized_height = static_cast<int>(
+          std::lround(in_height * (518.0 / in_width) / 14.0) * 14);
+      s.width = 518;
+      s.height = std::min(s.resized_height, 518);
+      s.crop_top = (s.resized_height - s.height) / 2;
+      return s;
+    }
+    case GridResize::kStretch:
+      break;
+  }
+  return ImageResizeSpec{};  // kStretch needs the grid: see SourceToGrid
+}
+
+namespace {
+// Frame `stored` of an in-memory reconstruction, with what `options` asks.
+Monst3rFrame LoadMemoryFrame(const Monst3rFrame& stored,
+                             const Monst3rLoadOptions& options) {
+  Monst3rFrame f;
+  f.index = stored.index;
+  f.camera = stored.camera;
+  f.world_from_cam = stored.world_from_cam;
+  f.depth = stored.depth;  // shared, read-only by convention (cv::Mat refs)
+  if (options.rgb) f.rgb = stored.rgb;
+  if (options.confidence) f.confidence01 = stored.confidence01;
+  if (options.dynamic_masks) f.dynamic_mask = stored.dynamic_mask;
+  if (options.enlarged_dynamic_masks)
+    f.enlarged_dynamic_mask = stored.enlarged_dynamic_mask;
+  return f;
+}
+}  // namespace
+
+Monst3rFolder Monst3rFolder::FromFrames(std::string name,
+                                        std::string format,
+                                        std::vector<Monst3rFrame> frames,
+                                        GridResize resize,
+                                        std::string units) {
+  GEODRIVE_CHECK_INPUT(!frames.empty(), name, ": no frames");
+  Monst3rFolder folder;
+  folder.dir_ = std::move(name);
+  folder.format_ = std::move(format);
+  folder.units_ = std::move(units);
+  folder.grid_resize_ = resize;
+  const Monst3rFrame& f0 = frames.front();
+  GEODRIVE_CHECK_INPUT(f0.depth.type() == CV_32FC1 && !f0.depth.empty(),
+                       folder.dir_, ": frame 0 has no float32 depth map");
+  folder.width_ = f0.depth.cols;
+  folder.height_ = f0.depth.rows;
+  folder.has_rgb_ = !f0.rgb.empty();
+  folder.has_conf_ = !f0.confidence01.empty();
+  folder.has_masks_ = !f0.dynamic_mask.empty();
+  for (size_t i = 0; i < frames.size(); ++i) {
+    Monst3rFrame& f = frames[i];
+    const std::string what = folder.dir_ + " frame " + std::to_string(i);
+    f.index = static_cast<int>(i);
+    auto check = [&](const cv::Mat& m, int type, bool want, const char* kind) {
+      GEODRIVE_CHECK_INPUT(
+          m.empty() != want, what, ": ", kind,
+          want ? " missing (frame 0 has one)" : " present (frame 0 has none)");
+      if (!want) return;
+      GEODRIVE_CHECK_INPUT(m.type() == type && m.cols == folder.width_ &&
+                               m.rows == folder.height_,
+                           what, ": ", kind, " is ", m.cols, "x", m.rows,
+                           ", expected ", folder.width_, "x", folder.height_,
+                           " like the depth of frame 0");
+    };
+    check(f.depth, CV_32FC1, true, "depth");
+    check(f.rgb, CV_8UC3, folder.has_rgb_, "image");
+    check(f.confidence01, CV_32FC1, folder.has_conf_, "confidence");
+    check(f.dynamic_mask, CV_8UC1, folder.has_masks_, "dynamic mask");
+    f.camera.Check(what + " intrinsics");
+    GEODRIVE_CHECK_INPUT(f.world_from_cam.translation.allFinite() &&
+                             f.world_from_cam.rotation.coeffs().allFinite(),
+                         what, ": pose is not finite");
+    folder.cameras_.push_back(f.camera);
+    folder.trajectory_.Add(static_cast<double>(i), f.world_from_cam);
+  }
+  folder.memory_ =
+      std::make_shared<const std::vector<Monst3rFrame>>(std::move(frames));
+  return folder;
+}
+
+ImageResizeSpec Monst3rFolder::SourceToGrid(int in_width, int in_height) const {
+  if (grid_resize_ != GridResize::kStretch)
+    return ComputeGridResizeSpec(grid_resize_, in_width, in_height);
+  ImageResizeSpec s;
+  s.resized_width = s.width = width_;
+  s.resized_height = s.height = height_;
+  return s;
+}
+
 Monst3rFolder Monst3rFolder::Open(const std::string& dir) {
   GEODRIVE_CHECK_INPUT(fs::is_directory(dir), dir,
                        ": not a directory (expected a MonST3R output "
@@ -297,29 +411,36 @@ std::string Pad4(int i) {
 }  // namespace
 
 std::string Monst3rFolder::DepthPath(int i) const {
+  if (memory_) return "";
   return JoinPath(dir_, NameOr(names_depth_, i, "frame_" + Pad4(i) + ".npy"));
 }
 std::string Monst3rFolder::RgbPath(int i) const {
+  if (memory_) return "";
   return JoinPath(dir_, NameOr(names_rgb_, i, "frame_" + Pad4(i) + ".png"));
 }
 std::string Monst3rFolder::ConfidencePath(int i) const {
+  if (memory_) return "";
   return JoinPath(dir_,
                   NameOr(names_conf_, i, "conf_" + std::to_string(i) + ".npy"));
 }
 std::string Monst3rFolder::InitConfidencePath(int i) const {
+  if (memory_) return "";
   return JoinPath(
       dir_, NameOr(names_init_, i, "init_conf_" + std::to_string(i) + ".npy"));
 }
 std::string Monst3rFolder::DynamicMaskPath(int i) const {
+  if (memory_) return "";
   return JoinPath(dir_, NameOr(names_mask_, i,
                                "dynamic_mask_" + std::to_string(i) + ".png"));
 }
 std::string Monst3rFolder::EnlargedDynamicMaskPath(int i) const {
+  if (memory_) return "";
   return JoinPath(
       dir_, NameOr(names_enl_, i,
                    "enlarged_dynamic_mask_" + std::to_string(i) + ".png"));
 }
 std::string Monst3rFolder::RawPointmapPath(int i) const {
+  if (memory_) return "";
   return JoinPath(dir_,
                   NameOr(names_pts_, i, "pts3d_" + std::to_string(i) + ".npy"));
 }
@@ -328,6 +449,7 @@ Monst3rFrame Monst3rFolder::LoadFrame(int i,
                                       const Monst3rLoadOptions& options) const {
   GEODRIVE_CHECK_INPUT(i >= 0 && i < num_frames(), dir_, ": frame ", i,
                        " out of range (", num_frames(), " frames)");
+  if (memory_) return LoadMemoryFrame((*memory_)[i], options);
   Monst3rFrame frame;
   frame.index = i;
   frame.camera = cameras_[i];

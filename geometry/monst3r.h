@@ -22,6 +22,7 @@
 // data are read lazily per frame.
 
 #include <map>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -39,6 +40,9 @@ struct Monst3rFrame {
   cv::Mat depth;                  // CV_32FC1 z-depth (MonST3R units)
   cv::Mat rgb;                    // CV_8UC3, RGB order
   cv::Mat log_confidence;         // CV_32FC1 conf_{i}.npy (may hold -inf)
+  // CV_32FC1 confidence already in [0, 1]: other tools' reconstructions
+  // (geometry/reconstruction.h), used when log_confidence is empty.
+  cv::Mat confidence01;
   cv::Mat init_log_confidence;    // CV_32FC1 init_conf_{i}.npy
   cv::Mat dynamic_mask;           // CV_8UC1, 255 = dynamic
   cv::Mat enlarged_dynamic_mask;  // CV_8UC1, 255 = dynamic
@@ -57,6 +61,29 @@ struct Monst3rLoadOptions {
   bool reject_all_invalid_confidence = true;
 };
 
+// How a reconstruction tool mapped the source image onto its pixel grid.
+enum class GridResize {
+  // DUSt3R's load_images(size=512) (MonST3R, CUT3R): long side to 512, each
+  // side centre-cropped to a multiple of 16 (ComputeMonst3rResizeSpec).
+  kMonst3r,
+  // VGGT's load_and_preprocess_images (mode "crop"): width to 518, height to
+  // round(h * 518 / w / 14) * 14 (a plain resize), then the height
+  // centre-cropped to 518 when larger.
+  kVggt,
+  // The whole source image resized to the grid (per-axis scale; Depth
+  // Anything 3, MegaSaM, MoGe, the generic npz).
+  kStretch,
+};
+std::string ToString(GridResize resize);
+// The resize of a source image of in_width x in_height by `rule`.
+ImageResizeSpec ComputeGridResizeSpec(GridResize rule,
+                                      int in_width,
+                                      int in_height);
+
+// A MonST3R output folder; or any other tool's reconstruction converted to
+// MonST3R's conventions and held in memory (FromFrames; the readers of
+// geometry/reconstruction.h): world_from_cam poses in OpenCV axes,
+// z-depth, integer-index pixels.
 class Monst3rFolder {
  public:
   // Scans `dir`, reads pred_traj.txt and pred_intrinsics.txt, checks that every
@@ -64,6 +91,17 @@ class Monst3rFolder {
   // the image size from the header of frame_0000.npy. Throws InputError naming
   // the file and the problem.
   static Monst3rFolder Open(const std::string& dir);
+  // A reconstruction in memory. Every frame has depth (CV_32FC1, all the same
+  // size), camera and world_from_cam; rgb (CV_8UC3), confidence01 and
+  // dynamic_mask are optional but present in all frames or none. `name` is
+  // the file or folder read (named in errors), `format` the tool ("VGGT"),
+  // `units` "metres" when the tool's depth is metric (else empty: up to
+  // scale). Throws InputError for inconsistent frames.
+  static Monst3rFolder FromFrames(std::string name,
+                                  std::string format,
+                                  std::vector<Monst3rFrame> frames,
+                                  GridResize resize,
+                                  std::string units = "");
 
   const std::string& dir() const { return dir_; }
   int num_frames() const { return static_cast<int>(trajectory_.size()); }
@@ -77,8 +115,21 @@ class Monst3rFolder {
   bool has_dynamic_masks() const { return has_masks_; }
   bool has_enlarged_dynamic_masks() const { return has_enlarged_masks_; }
   bool has_raw_pointmaps() const { return has_pts3d_; }
+  // The tool that wrote it: "MonST3R" for Open(), else FromFrames' format.
+  const std::string& format() const { return format_; }
+  // "metres" when the depth is metric as read, empty when up to scale.
+  const std::string& units() const { return units_; }
+  // How the tool mapped a source image onto the grid (kMonst3r for Open()).
+  GridResize grid_resize() const { return grid_resize_; }
+  // True for FromFrames (no per-frame files: the *Path() functions return
+  // empty strings).
+  bool in_memory() const { return memory_ != nullptr; }
+  // The resize from a source image of in_width x in_height to this grid
+  // (per grid_resize(); its width and height may differ from the grid's when
+  // the source is not the tool's input).
+  ImageResizeSpec SourceToGrid(int in_width, int in_height) const;
 
-  // File paths of frame i.
+  // File paths of frame i (empty for an in-memory reconstruction).
   std::string DepthPath(int i) const;
   std::string RgbPath(int i) const;
   std::string ConfidencePath(int i) const;
@@ -98,6 +149,9 @@ class Monst3rFolder {
 
  private:
   std::string dir_;
+  std::string format_ = "MonST3R", units_;
+  GridResize grid_resize_ = GridResize::kMonst3r;
+  std::shared_ptr<const std::vector<Monst3rFrame>> memory_;
   int width_ = 0, height_ = 0;
   Trajectory trajectory_;
   std::vector<PinholeCamera> cameras_;

@@ -3,8 +3,11 @@
 #include <zip.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <iterator>
+#include <regex>
 
 #include "geometry/util/status.h"
 
@@ -147,6 +150,110 @@ NpyArray NpzReader::Read(const std::string& key,
 NpyArray NpzReader::ReadAsFloat32(const std::string& key,
                                   const NpyReadOptions& options) const {
   return ConvertNpyToFloat32(Read(key, options));
+}
+
+std::string NpzReader::ReadString(const std::string& key) const {
+  // numpy.lib.format: magic (6), version (2), header length (2 or 4), then
+  // the header dict, e.g. {'descr': '<U6', 'fortran_order': False,
+  // 'shape': (), }. The dtype parser of npy.cc knows numeric dtypes only.
+  const std::string what = impl_->What(key);
+  const std::vector<uint8_t> head = impl_->ReadMember(key, 12 + 4096);
+  GEODRIVE_CHECK_INPUT(head.size() >= 10 && head[0] == 0x93 &&
+                           std::memcmp(head.data() + 1, "NUMPY", 5) == 0,
+                       what, ": not a .npy member");
+  const int major = head[6];
+  const size_t len_bytes = major == 1 ? 2 : 4;
+  GEODRIVE_CHECK_INPUT(head.size() >= 8 + len_bytes, what,
+                       ": truncated header");
+  size_t header_len = 0;
+  for (size_t i = 0; i < len_bytes; ++i)
+    header_len |= static_cast<size_t>(head[8 + i]) << (8 * i);
+  const size_t start = 8 + len_bytes;
+  GEODRIVE_CHECK_INPUT(header_len <= 4096 && start + header_len <= head.size(),
+                       what, ": header of ", header_len,
+                       " bytes is longer than a string scalar's");
+  const std::string dict(reinterpret_cast<const char*>(head.data()) + start,
+                         header_len);
+  std::smatch m;
+  static const std::regex kDescr(R"('descr'\s*:\s*'([<>|=])([US])(\d{1,4})')");
+  static const std::regex kShape(R"('shape'\s*:\s*\((1,)?\))");
+  GEODRIVE_CHECK_INPUT(std::regex_search(dict, m, kDescr), what,
+                       ": not a string (expected a str such as "
+                       "units=\"metres\"; header ",
+                       dict.substr(0, 60), ")");
+  const bool unicode = m[2].str() == "U";
+  const bool big = m[1].str() == ">";
+  const size_t chars = std::stoul(m[3].str());
+  GEODRIVE_CHECK_INPUT(std::regex_search(dict, kShape), what,
+                       ": a string scalar must have shape () or (1,)");
+  const size_t bytes = chars * (unicode ? 4 : 1);
+  const std::vector<uint8_t> all =
+      impl_->ReadMember(key, start + header_len + bytes);
+  GEODRIVE_CHECK_INPUT(all.size() == start + header_len + bytes, what,
+                       ": string data ends early");
+  std::string out;
+  for (size_t c = 0; c < chars; ++c) {
+    uint32_t code = 0;
+    if (unicode) {
+      const uint8_t* p = all.data() + start + header_len + 4 * c;
+      code = big ? (uint32_t{p[0]} << 24 | uint32_t{p[1]} << 16 |
+                    uint32_t{p[2]} << 8 | p[3])
+                 : (uint32_t{p[3]} << 24 | uint32_t{p[2]} << 16 |
+                    uint32_t{p[1]} << 8 | p[0]);
+    } else {
+      code = all[start + header_len + c];
+    }
+    if (code == 0) break;  // numpy pads with NULs
+    GEODRIVE_CHECK_INPUT(code < 128 && code >= 32, what,
+                         ": non-ASCII character in the string");
+    out.push_back(static_cast<char>(code));
+  }
+  return out;
+}
+
+void WriteNpz(const std::string& path,
+              const std::vector<std::pair<std::string, NpyArray>>& arrays,
+              bool compress) {
+  // Each member is a .npy (format 1.0) written by WriteNpy to a temporary
+  // file and read back: one writer of the .npy format.
+  const std::string tmp = path + ".tmp-npz";
+  std::vector<std::vector<uint8_t>> members;
+  for (const auto& [name, array] : arrays) {
+    const std::string npy = tmp + ".npy";
+    WriteNpy(npy, array);
+    std::ifstream in(npy, std::ios::binary);
+    members.emplace_back(std::istreambuf_iterator<char>(in),
+                         std::istreambuf_iterator<char>());
+    std::remove(npy.c_str());
+  }
+  int error = 0;
+  zip_t* z = zip_open(tmp.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &error);
+  GEODRIVE_CHECK_INPUT(z != nullptr, path, ": cannot create the archive");
+  for (size_t i = 0; i < arrays.size(); ++i) {
+    zip_source_t* src =
+        zip_source_buffer(z, members[i].data(), members[i].size(), 0);
+    const zip_int64_t index =
+        src ? zip_file_add(z, (arrays[i].first + ".npy").c_str(), src,
+                           ZIP_FL_ENC_UTF_8)
+            : -1;
+    if (index < 0) {
+      if (src) zip_source_free(src);
+      const std::string why = zip_strerror(z);
+      zip_discard(z);
+      std::remove(tmp.c_str());
+      ThrowInputError(path, "cannot add member ", arrays[i].first, ": ", why);
+    }
+    zip_set_file_compression(z, static_cast<zip_uint64_t>(index),
+                             compress ? ZIP_CM_DEFLATE : ZIP_CM_STORE, 0);
+  }
+  if (zip_close(z) != 0) {
+    const std::string why = zip_strerror(z);
+    zip_discard(z);
+    std::remove(tmp.c_str());
+    ThrowInputError(path, "cannot write the archive: ", why);
+  }
+  GEODRIVE_CHECK_INPUT(std::rename(tmp.c_str(), path.c_str()) == 0, path,
+                       ": cannot rename the temporary archive into place");
 }
 
 bool LooksLikeZip(const std::string& path) {

@@ -8,6 +8,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "geometry/npy.h"
@@ -37,11 +38,22 @@ class NpzReader {
   // Array `key` converted to float32 (float16 depths included).
   NpyArray ReadAsFloat32(const std::string& key,
                          const NpyReadOptions& options = {}) const;
+  // A string scalar `key` as numpy.savez writes a Python str ('<U' dtype,
+  // shape () or (1,)) or bytes ('|S'); ASCII text only. Throws InputError
+  // for any other array.
+  std::string ReadString(const std::string& key) const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Writes `arrays` (name without ".npy" -> array) as an .npz, deflated
+// (numpy.savez_compressed) or stored (numpy.savez), atomically (temporary
+// file + rename). Throws InputError naming `path` on failure.
+void WriteNpz(const std::string& path,
+              const std::vector<std::pair<std::string, NpyArray>>& arrays,
+              bool compress = true);
 
 // True when `path` starts with a zip signature (an .npz or any zip file).
 bool LooksLikeZip(const std::string& path);

@@ -64,6 +64,8 @@ Pointmap BuildPointmap(const Monst3rFrame& frame,
                             : frame.log_confidence;
   if (!conf.empty())
     pm.confidence = ConfidenceMapToUnit(conf, ConfidenceEncoding::kLog);
+  else if (source != ConfidenceSource::kInitConf)
+    pm.confidence = frame.confidence01;  // another tool's, already in [0, 1]
   pm.dynamic_mask = frame.dynamic_mask;
   pm.enlarged_dynamic_mask = frame.enlarged_dynamic_mask;
   pm.rgb = frame.rgb;

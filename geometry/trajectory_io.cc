@@ -1,8 +1,10 @@
 #include "geometry/trajectory_io.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 #include <string_view>
 
 #include "geometry/util/files.h"
@@ -181,6 +183,94 @@ Trajectory ReadTumTrajectory(const std::string& path) {
 
 void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
   WriteTrajectory(path, trajectory, QuatOrder::kXyzw);
+}
+
+Trajectory ReadKittiTrajectory(const std::string& path,
+                               const std::string& times_path) {
+  const std::vector<Row> rows = ReadRows(
+      path, 12, "12 numbers: the row-major 3x4 world_from_cam0 (KITTI poses)");
+  std::vector<double> times;
+  if (!times_path.empty()) {
+    for (const Row& r : ReadRows(times_path, 1, "one timestamp (seconds)"))
+      times.push_back(r.values[0]);
+    GEODRIVE_CHECK_INPUT(times.size() == rows.size(), times_path, ": ",
+                         times.size(), " timestamps for ", rows.size(),
+                         " poses in ", path);
+  }
+  Trajectory t;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    Matrix3x4d m;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) m(r, c) = rows[i].values[r * 4 + c];
+    Rigid3d pose;
+    try {
+      pose = Rigid3d::FromMatrix3x4(m, 1e-5);
+    } catch (const InputError& e) {
+      ThrowInputError(path, "line ", rows[i].line, ": ", e.what());
+    }
+    pose.rotation.normalize();
+    const double stamp = times.empty() ? static_cast<double>(i) : times[i];
+    GEODRIVE_CHECK_INPUT(t.empty() || stamp > t.timestamps.back(),
+                         times_path.empty() ? path : times_path, " line ",
+                         i + 1, ": timestamps must increase");
+    t.Add(stamp, pose);
+  }
+  GEODRIVE_CHECK_INPUT(!t.empty(), path, ": no poses");
+  return t;
+}
+
+Trajectory ReadColmapTrajectory(const std::string& path) {
+  const std::string text = ReadFileText(path);
+  std::vector<std::pair<std::string, Rigid3d>> images;
+  size_t start = 0;
+  int line_no = 0;
+  bool expect_points = false;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(start, end - start);
+    start = end + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const size_t first = line.find_first_not_of(" \t");
+    if (first != std::string::npos && line[first] == '#') continue;
+    if (expect_points) {  // the image's 2D points (may be empty)
+      expect_points = false;
+      continue;
+    }
+    if (first == std::string::npos) continue;
+    std::istringstream ls(line);
+    long id = 0, camera_id = 0;
+    double qw, qx, qy, qz, tx, ty, tz;
+    std::string name;
+    if (!(ls >> id >> qw >> qx >> qy >> qz >> tx >> ty >> tz >> camera_id >>
+          name)) {
+      ThrowInputError(
+          path, "line ", line_no,
+          ": expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
+    }
+    const Eigen::Quaterniond q(qw, qx, qy, qz);
+    const Eigen::Vector3d tr(tx, ty, tz);
+    GEODRIVE_CHECK_INPUT(q.coeffs().allFinite() && tr.allFinite(), path,
+                         " line ", line_no, ": non-finite pose");
+    GEODRIVE_CHECK_INPUT(std::abs(q.norm() - 1) < 1e-3, path, " line ", line_no,
+                         ": quaternion norm ", q.norm(),
+                         " (expected unit QW QX QY QZ)");
+    const Rigid3d cam_from_world(q.normalized(), tr);
+    images.emplace_back(name, cam_from_world.Inverse());
+    expect_points = true;
+  }
+  GEODRIVE_CHECK_INPUT(!images.empty(), path, ": no images");
+  std::stable_sort(
+      images.begin(), images.end(),
+      [](const auto& a, const auto& b) { return a.first < b.first; });
+  Trajectory t;
+  for (size_t i = 0; i < images.size(); ++i) {
+    GEODRIVE_CHECK_INPUT(i == 0 || images[i].first != images[i - 1].first, path,
+                         ": image name '", images[i].first, "' appears twice");
+    t.Add(static_cast<double>(i), images[i].second);
+  }
+  return t;
 }
 
 std::vector<PinholeCamera> ReadMonst3rIntrinsics(const std::string& path,

@@ -5,7 +5,9 @@
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
+#include "geometry/reconstruction.h"
 #include "geometry/trajectory_io.h"
 #include "geometry/util/files.h"
 #include "geometry/util/json_fields.h"
@@ -156,35 +158,96 @@ void WriteTrajectoryJson(const std::string& path,
   WriteFileAtomic(path, root.dump(2) + "\n");
 }
 
+namespace {
+// Numbers on the first non-comment line of a text file (0 if none).
+size_t FirstRowColumns(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream ls(line);
+    std::string token;
+    size_t n = 0;
+    while (ls >> token) ++n;
+    return n;
+  }
+  return 0;
+}
+}  // namespace
+
 TrajectoryFormat ParseTrajectoryFormat(const std::string& text) {
   if (text == "auto") return TrajectoryFormat::kAuto;
   if (text == "json") return TrajectoryFormat::kJson;
   if (text == "tum") return TrajectoryFormat::kTum;
   if (text == "monst3r") return TrajectoryFormat::kMonst3r;
+  if (text == "kitti") return TrajectoryFormat::kKitti;
+  if (text == "colmap") return TrajectoryFormat::kColmap;
+  if (text == "reconstruction") return TrajectoryFormat::kReconstruction;
   ThrowInputError("trajectory format", "'", text,
-                  "' is not one of auto, json, tum, monst3r");
+                  "' is not one of auto, json, tum, monst3r, kitti, colmap, "
+                  "reconstruction");
+}
+
+TrajectoryFormat DetectTrajectoryFormat(const std::string& path) {
+  namespace fs = std::filesystem;
+  const std::string name = fs::path(path).filename().string();
+  std::error_code ec;
+  if (EndsWith(name, ".json")) return TrajectoryFormat::kJson;
+  if (name == "pred_traj.txt") return TrajectoryFormat::kMonst3r;
+  if (name == "images.txt") return TrajectoryFormat::kColmap;
+  if (EndsWith(name, ".npz") || fs::is_directory(path, ec))
+    return TrajectoryFormat::kReconstruction;
+  return FirstRowColumns(path) == 12 ? TrajectoryFormat::kKitti
+                                     : TrajectoryFormat::kTum;
 }
 
 Trajectory ReadTrajectoryAny(const std::string& path,
                              TrajectoryFormat format,
                              TrajectoryFileInfo* info) {
-  if (format == TrajectoryFormat::kAuto) {
-    const std::string name = std::filesystem::path(path).filename().string();
-    if (EndsWith(name, ".json"))
-      format = TrajectoryFormat::kJson;
-    else if (name == "pred_traj.txt")
-      format = TrajectoryFormat::kMonst3r;
-    else
-      format = TrajectoryFormat::kTum;
-  }
+  namespace fs = std::filesystem;
+  if (format == TrajectoryFormat::kAuto) format = DetectTrajectoryFormat(path);
   if (format == TrajectoryFormat::kJson) return ReadTrajectoryJson(path, info);
   if (info) {
     *info = TrajectoryFileInfo();
-    info->units = format == TrajectoryFormat::kMonst3r ? "monst3r" : "unknown";
+    info->units = format == TrajectoryFormat::kMonst3r ? "monst3r"
+                  : format == TrajectoryFormat::kKitti ? "metres"
+                                                       : "unknown";
   }
-  Trajectory t = format == TrajectoryFormat::kMonst3r
-                     ? ReadMonst3rTrajectory(path)
-                     : ReadTumTrajectory(path);
+  Trajectory t;
+  switch (format) {
+    case TrajectoryFormat::kMonst3r:
+      t = ReadMonst3rTrajectory(path);
+      break;
+    case TrajectoryFormat::kKitti: {
+      // KITTI keeps times.txt in the sequence folder; use one beside the
+      // poses when its count matches.
+      const std::string times =
+          (fs::path(path).parent_path() / "times.txt").string();
+      std::error_code ec;
+      t = ReadKittiTrajectory(
+          path, fs::is_regular_file(times, ec) && FirstRowColumns(times) == 1
+                    ? times
+                    : "");
+      break;
+    }
+    case TrajectoryFormat::kColmap:
+      t = ReadColmapTrajectory(path);
+      break;
+    case TrajectoryFormat::kReconstruction: {
+      const auto recon = DetectReconstructionFormat(path);
+      GEODRIVE_CHECK_INPUT(recon, path,
+                           ": not a reconstruction this reader recognises "
+                           "(VGGT, DA3, MegaSaM or generic npz; a CUT3R or "
+                           "MonST3R folder)");
+      const Monst3rFolder folder = ReadReconstruction(*recon, path);
+      t = folder.trajectory();
+      if (info && folder.units() == "metres") info->units = "metres";
+      break;
+    }
+    default:
+      t = ReadTumTrajectory(path);
+  }
   GEODRIVE_CHECK_INPUT(!t.empty(), path, ": trajectory has no poses");
   return t;
 }

@@ -41,11 +41,28 @@ void WriteTrajectoryJson(const std::string& path,
                          const Trajectory& trajectory,
                          const TrajectoryFileInfo& info = {});
 
-enum class TrajectoryFormat { kAuto, kJson, kTum, kMonst3r };
-// "auto", "json", "tum", "monst3r"; throws InputError otherwise.
+enum class TrajectoryFormat {
+  kAuto,
+  kJson,
+  kTum,
+  kMonst3r,
+  // KITTI odometry poses (12 numbers per line; times.txt beside it is used).
+  kKitti,
+  // COLMAP images.txt (w2c, w-first quaternions).
+  kColmap,
+  // The camera track of a reconstruction (geometry/reconstruction.h: a VGGT,
+  // DA3, MegaSaM or generic npz, a CUT3R or MonST3R folder).
+  kReconstruction,
+};
+// "auto", "json", "tum", "monst3r", "kitti", "colmap", "reconstruction";
+// throws InputError otherwise.
 TrajectoryFormat ParseTrajectoryFormat(const std::string& text);
-// kAuto: *.json -> JSON, a file named pred_traj.txt -> MonST3R (t x y z qw qx
-// qy qz), any other file -> TUM (t x y z qx qy qz qw).
+// kAuto: *.json -> JSON; a file named pred_traj.txt -> MonST3R (t x y z qw qx
+// qy qz); images.txt -> COLMAP; an .npz or a folder -> a reconstruction's
+// camera track; a text file whose first row has 12 numbers -> KITTI; any
+// other file -> TUM (t x y z qx qy qz qw).
+// The format kAuto resolves to for `path` (never kAuto).
+TrajectoryFormat DetectTrajectoryFormat(const std::string& path);
 Trajectory ReadTrajectoryAny(const std::string& path,
                              TrajectoryFormat format = TrajectoryFormat::kAuto,
                              TrajectoryFileInfo* info = nullptr);

@@ -1,4 +1,7 @@
-// Scene source "monst3r": a MonST3R output folder (geometry/monst3r.h).
+// Scene source "monst3r": a MonST3R output folder (geometry/monst3r.h); and,
+// through the same code, every other reconstruction tool's output read by
+// geometry/reconstruction.h (sources "vggt", "da3", "cut3r", "megasam",
+// "npz": dataset/scene/reconstruction_source.h).
 //
 // kPaper (the data engine, `build-dataset`): frame 0's pointmap filtered by
 // confidence (tau) and depth range, made metric by a robust LiDAR depth fit
@@ -7,14 +10,13 @@
 // `generate`, as the released scripts): every pixel of frame 0's depth, in
 // MonST3R's world and units, along pred_traj.txt.
 
-#include "geometry/monst3r.h"
-
 #include <chrono>
 #include <cmath>
 #include <limits>
 
 #include "dataset/lidar_alignment.h"
 #include "dataset/scene/define.h"
+#include "dataset/scene/reconstruction_source.h"
 #include "geometry/image_io.h"
 #include "geometry/pointmap.h"
 #include "geometry/pose_refinement.h"
@@ -31,9 +33,14 @@ SceneScale FitScale(const SceneInputs& in,
                     std::map<std::string, double>* seconds) {
   SceneScale scale;
   if (!in.clip || !in.clip->lidar || !options.lidar_scale) {
+    if (folder.units() == "metres") {
+      scale.source = "given";
+      scale.report = folder.format() + " states metric depth (no LiDAR fit)";
+      return scale;
+    }
     scale.source = "none";
-    scale.report =
-        "no LiDAR in the dataset: poses and depth stay in MonST3R units";
+    scale.report = "no LiDAR in the dataset: poses and depth stay in " +
+                   folder.format() + " units";
     return scale;
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -97,6 +104,11 @@ Trajectory RefinePoses(const Monst3rFolder& folder,
   return refined;
 }
 
+// ConditionScene::units of a reconstruction without a metric scale.
+std::string RelativeUnits(const Monst3rFolder& folder) {
+  return folder.format() == "MonST3R" ? "monst3r" : "unknown";
+}
+
 ConditionScene BuildPaper(const SceneInputs& in,
                           const SceneSourceOptions& options,
                           const Monst3rFolder& folder) {
@@ -106,7 +118,8 @@ ConditionScene BuildPaper(const SceneInputs& in,
                                     ? RefinePoses(folder, options, &scene)
                                     : folder.trajectory();
   scene.scale = FitScale(in, options, folder, &scene.seconds);
-  const bool metric = scene.scale.source == "lidar";
+  const bool metric =
+      scene.scale.source == "lidar" || scene.scale.source == "given";
   const double scale = scene.scale.scale;
   Monst3rLoadOptions load;
   load.init_confidence = false;
@@ -141,8 +154,8 @@ ConditionScene BuildPaper(const SceneInputs& in,
     scene.trajectory.Add(trajectory.timestamps[i], cam0_from_world * w);
   }
   scene.camera = folder.cameras().front();
-  scene.units = metric ? "metres" : "monst3r";
-  scene.description = "MonST3R " + dir + " frame 0 (paper filters)";
+  scene.units = metric ? "metres" : RelativeUnits(folder);
+  scene.description = folder.format() + " " + dir + " frame 0 (paper filters)";
   return scene;
 }
 
@@ -158,8 +171,11 @@ ConditionScene BuildReleased(const SceneInputs& in,
     image = ReadImageRgb(in.image_path);
   if (image.empty()) image = f0.rgb;
   GEODRIVE_CHECK_INPUT(!image.empty(), in.path,
-                       ": frame_0000.png is missing (needed for colours; or "
-                       "pass --image)");
+                       folder.in_memory()
+                           ? ": no images in the file (needed for colours; "
+                             "pass --image)"
+                           : ": frame_0000.png is missing (needed for "
+                             "colours; or pass --image)");
   const cv::Mat colours =
       f0.rgb.empty() || f0.rgb.size() != f0.depth.size()
           ? ResizeBilinear(image, f0.depth.cols, f0.depth.rows)
@@ -172,52 +188,62 @@ ConditionScene BuildReleased(const SceneInputs& in,
   scene.scene_from_cam0 = f0.world_from_cam;
   scene.camera = f0.camera;
   scene.frame0_rgb = image;
-  if (folder.has_rgb()) {
+  if (folder.has_rgb() && !folder.in_memory()) {
     for (int i = 0; i < folder.num_frames(); ++i)
       scene.frame_image_paths.push_back(folder.RgbPath(i));
   }
-  scene.units = "monst3r";
-  scene.scale.report = "MonST3R units (no metric scale)";
-  scene.description = "MonST3R " + in.path + " frame 0";
+  scene.units = folder.units() == "metres" ? "metres" : RelativeUnits(folder);
+  scene.scale.source = folder.units() == "metres" ? "given" : "none";
+  scene.scale.report = folder.units() == "metres"
+                           ? folder.format() + " states metric depth"
+                           : folder.format() + " units (no metric scale)";
+  scene.description = folder.format() + " " + in.path + " frame 0";
   return scene;
 }
 
-class Monst3rSceneSource : public SceneSource {
- public:
-  SceneSourceTraits Traits() const override {
-    return {true, false,
-            "a MonST3R output folder (pred_traj.txt, pred_intrinsics.txt, "
-            "frame_NNNN.npy, conf_N.npy, masks)",
-            "pred_traj.txt"};
-  }
-  ConditionScene Build(const SceneInputs& in,
-                       const SceneSourceOptions& options) const override {
-    const Monst3rFolder folder = Monst3rFolder::Open(in.path);
-    if (in.clip && folder.num_frames() != in.clip->num_frames()) {
-      ThrowInputError(in.path, "MonST3R folder has ", folder.num_frames(),
-                      " frames but the clip has ", in.clip->num_frames());
-    }
-    if (in.clip) {  // MonST3R's 512-long-side resize of the clip's images
-      const PinholeCamera& cam = in.clip->frames.front().camera;
-      const ImageResizeSpec spec =
-          ComputeMonst3rResizeSpec(cam.width, cam.height, 512);
-      if (spec.width != folder.width() || spec.height != folder.height()) {
-        ThrowInputError(in.path, "MonST3R images are ", folder.width(), "x",
-                        folder.height(), " but the clip's ", cam.width, "x",
-                        cam.height, " images map to ", spec.width, "x",
-                        spec.height,
-                        " (512 long side): not this clip's folder");
-      }
-    }
-    ConditionScene scene = options.filter == PointmapFilter::kPaper
-                               ? BuildPaper(in, options, folder)
-                               : BuildReleased(in, folder);
-    scene.has_camera = true;
-    return scene;
-  }
-};
-
 }  // namespace
+
+SceneSourceTraits ReconstructionSceneSource::Traits() const {
+  const auto reader = CreateReconstructionReader(format_);
+  const ReconstructionConventions c = reader->Conventions();
+  SceneSourceTraits t;
+  t.needs_path = true;
+  t.help = format_ == ReconstructionFormat::kMonst3r
+               ? "a MonST3R output folder (pred_traj.txt, "
+                 "pred_intrinsics.txt, frame_NNNN.npy, conf_N.npy, masks)"
+               : reader->ToolName() + " output (" + c.pose + "; " +
+                     c.confidence + ")";
+  t.folder_marker =
+      format_ == ReconstructionFormat::kMonst3r ? "pred_traj.txt" : "";
+  return t;
+}
+
+ConditionScene ReconstructionSceneSource::Build(
+    const SceneInputs& in, const SceneSourceOptions& options) const {
+  const Monst3rFolder folder = ReadReconstruction(format_, in.path);
+  const std::string& tool = folder.format();
+  if (in.clip && folder.num_frames() != in.clip->num_frames()) {
+    ThrowInputError(in.path, tool, " output has ", folder.num_frames(),
+                    " frames but the clip has ", in.clip->num_frames());
+  }
+  if (in.clip) {  // the tool's resize of the clip's images
+    const PinholeCamera& cam = in.clip->frames.front().camera;
+    const ImageResizeSpec spec = folder.SourceToGrid(cam.width, cam.height);
+    if (spec.width != folder.width() || spec.height != folder.height()) {
+      ThrowInputError(in.path, tool, " images are ", folder.width(), "x",
+                      folder.height(), " but the clip's ", cam.width, "x",
+                      cam.height, " images map to ", spec.width, "x",
+                      spec.height, " (", ToString(folder.grid_resize()),
+                      "): not this clip's output");
+    }
+  }
+  ConditionScene scene = options.filter == PointmapFilter::kPaper
+                             ? BuildPaper(in, options, folder)
+                             : BuildReleased(in, folder);
+  scene.has_camera = true;
+  return scene;
+}
+
 }  // namespace geodrive
 
 GEODRIVE_DEFINE_SCENE_SOURCE(monst3r, geodrive::Monst3rSceneSource)

@@ -1,0 +1,10 @@
+// Scene source "vggt": geometry/reconstruction.h's reader for this format,
+// then the MonST3R path (dataset/scene/reconstruction_source.h).
+
+#include "dataset/scene/reconstruction_source.h"
+
+namespace geodrive {
+GEODRIVE_RECONSTRUCTION_SOURCE(VggtSceneSource, ReconstructionFormat::kVggt);
+}  // namespace geodrive
+
+GEODRIVE_DEFINE_SCENE_SOURCE(vggt, geodrive::VggtSceneSource)
