@@ -17,6 +17,8 @@ std::string ToString(ReconstructionFormat format) {
       return "cut3r";
     case ReconstructionFormat::kMegaSam:
       return "megasam";
+    case ReconstructionFormat::kMoge:
+      return "moge";
     case ReconstructionFormat::kGenericNpz:
       return "npz";
   }
@@ -24,10 +26,10 @@ std::string ToString(ReconstructionFormat format) {
 }
 
 std::vector<ReconstructionFormat> AllReconstructionFormats() {
-  return {
-      ReconstructionFormat::kMonst3r,        ReconstructionFormat::kVggt,
-      ReconstructionFormat::kDepthAnything3, ReconstructionFormat::kCut3r,
-      ReconstructionFormat::kMegaSam,        ReconstructionFormat::kGenericNpz};
+  return {ReconstructionFormat::kMonst3r,        ReconstructionFormat::kVggt,
+          ReconstructionFormat::kDepthAnything3, ReconstructionFormat::kCut3r,
+          ReconstructionFormat::kMegaSam,        ReconstructionFormat::kMoge,
+          ReconstructionFormat::kGenericNpz};
 }
 
 ReconstructionFormat ParseReconstructionFormat(const std::string& text) {
@@ -55,6 +57,8 @@ std::unique_ptr<ReconstructionReader> CreateReconstructionReader(
       return reconstruction::CreateCut3rReader();
     case ReconstructionFormat::kMegaSam:
       return reconstruction::CreateMegaSamReader();
+    case ReconstructionFormat::kMoge:
+      return reconstruction::CreateMogeReader();
     case ReconstructionFormat::kGenericNpz:
       return reconstruction::CreateGenericNpzReader();
   }

@@ -36,12 +36,15 @@ enum class ReconstructionFormat {
   // MegaSaM *_sgd_cvd_hr.npz / *_droid.npz (images, depths float16 or
   // float32, one intrinsic (3,3), cam_c2w (N,4,4)).
   kMegaSam,
+  // MoGe / MoGe-2 --maps folder (depth.exr, points.exr, mask.png,
+  // fov.json, image.jpg): one image, identity pose.
+  kMoge,
   // Our generic npz: depth (N,H,W), optional conf with its stated scale,
   // intrinsics (N,3,3) or (3,3), cam_c2w or cam_w2c (N,4,4), optional images,
   // units. docs/RECONSTRUCTIONS.md has a five-line writer.
   kGenericNpz,
 };
-// "monst3r", "vggt", "da3", "cut3r", "megasam", "npz".
+// "monst3r", "vggt", "da3", "cut3r", "megasam", "moge", "npz".
 std::string ToString(ReconstructionFormat format);
 // Throws InputError listing the names for any other text.
 ReconstructionFormat ParseReconstructionFormat(const std::string& text);

@@ -222,7 +222,11 @@ ConditionScene ReconstructionSceneSource::Build(
     const SceneInputs& in, const SceneSourceOptions& options) const {
   const Monst3rFolder folder = ReadReconstruction(format_, in.path);
   const std::string& tool = folder.format();
-  if (in.clip && folder.num_frames() != in.clip->num_frames()) {
+  // A single-image tool (MoGe) takes the clip's camera trajectory.
+  const bool single = in.clip && folder.num_frames() == 1 &&
+                      in.clip->num_frames() > 1 &&
+                      format_ == ReconstructionFormat::kMoge;
+  if (in.clip && !single && folder.num_frames() != in.clip->num_frames()) {
     ThrowInputError(in.path, tool, " output has ", folder.num_frames(),
                     " frames but the clip has ", in.clip->num_frames());
   }
@@ -236,10 +240,44 @@ ConditionScene ReconstructionSceneSource::Build(
                       spec.height, " (", ToString(folder.grid_resize()),
                       "): not this clip's output");
     }
+    // A resize of the whole image keeps its aspect ratio up to the tools'
+    // rounding of each side (DA3: multiples of 14, up to 5 %).
+    const double aspect = double(folder.width()) / folder.height();
+    const double source = double(cam.width) / cam.height;
+    if (folder.grid_resize() == GridResize::kStretch &&
+        std::abs(aspect / source - 1) > 0.06) {
+      ThrowInputError(in.path, tool, " images are ", folder.width(), "x",
+                      folder.height(), " (aspect ", aspect, ") but the clip's ",
+                      cam.width, "x", cam.height, " (aspect ", source,
+                      "): not a resize of this clip's images (crop first)");
+    }
   }
-  ConditionScene scene = options.filter == PointmapFilter::kPaper
-                             ? BuildPaper(in, options, folder)
-                             : BuildReleased(in, folder);
+  if (!single) {
+    ConditionScene scene = options.filter == PointmapFilter::kPaper
+                               ? BuildPaper(in, options, folder)
+                               : BuildReleased(in, folder);
+    scene.has_camera = true;
+    return scene;
+  }
+  // Frame 0 from the image (its scale from frame 0's LiDAR), every frame's
+  // pose from the clip: cam0_from_cam_i = inverse(world_from_cam_0) *
+  // world_from_cam_i, metric.
+  DriveClip first = *in.clip;
+  first.frames.resize(1);
+  SceneInputs in0 = in;
+  in0.clip = &first;
+  ConditionScene scene = BuildPaper(in0, options, folder);
+  GEODRIVE_CHECK_INPUT(scene.metric(), in.path, ": ", tool,
+                       " depth is up to scale and could not be made metric "
+                       "for the clip's metric trajectory (",
+                       scene.scale.report, ")");
+  const Trajectory clip_traj = CameraTrajectory(*in.clip);
+  const Rigid3d cam0_from_world = clip_traj.world_from_cam.front().Inverse();
+  scene.trajectory = Trajectory();
+  for (size_t i = 0; i < clip_traj.size(); ++i)
+    scene.trajectory.Add(static_cast<double>(i),  // frame index, as above
+                         cam0_from_world * clip_traj.world_from_cam[i]);
+  scene.description += " with the clip's camera trajectory";
   scene.has_camera = true;
   return scene;
 }

@@ -115,6 +115,7 @@ std::unique_ptr<ReconstructionReader> CreateVggtReader();
 std::unique_ptr<ReconstructionReader> CreateDepthAnything3Reader();
 std::unique_ptr<ReconstructionReader> CreateCut3rReader();
 std::unique_ptr<ReconstructionReader> CreateMegaSamReader();
+std::unique_ptr<ReconstructionReader> CreateMogeReader();
 std::unique_ptr<ReconstructionReader> CreateGenericNpzReader();
 }  // namespace reconstruction
 }  // namespace geodrive

@@ -21,6 +21,7 @@
 #include "dataset/pairs.h"
 #include "dataset/scene_source.h"
 #include "dataset/synthetic/synthetic_dataset.h"
+#include "geometry/exr.h"
 #include "geometry/image_io.h"
 #include "geometry/npz.h"
 #include "geometry/util/status.h"
@@ -201,7 +202,7 @@ void WriteCut3r(const Truth& t, const std::string& dir) {
   for (const char* sub : {"depth", "conf", "color", "camera"})
     fs::create_directories(dir + "/" + sub);
   for (size_t i = 0; i < t.frames.size(); ++i) {
-    char name[16];
+    char name[32];
     std::snprintf(name, sizeof(name), "%06zu", i);
     const Monst3rFrame& f = t.frames[i];
     WriteNpy(
@@ -274,6 +275,7 @@ std::string WriteFixture(ReconstructionFormat format,
       WriteGeneric(t, dir + "/scene.npz");
       return dir;
     case ReconstructionFormat::kMonst3r:
+    case ReconstructionFormat::kMoge:  // one image: its own tests below
       break;
   }
   return "";
@@ -700,6 +702,147 @@ TEST(Reconstruction, BuilderBuildsEveryFormatLikeMonst3r) {
       EXPECT_LE(cov, vggt ? 0.02 : 0.002) << name << " " << clip;
       EXPECT_LE(psnr, vggt ? 3.0 : 0.2) << name << " " << clip;
     }
+  }
+}
+
+}  // namespace
+}  // namespace geodrive
+
+namespace geodrive {
+namespace {
+
+// MoGe's --maps folder from frame 0 of a MonST3R folder: depth.exr ("Y"),
+// points.exr (x, y, z in R, G, B, as cv2.imwrite of cvtColor(points,
+// RGB2BGR) stores them), mask.png, fov.json (2 decimals), the image.
+void WriteMoge(const Truth& t, const std::string& dir, const char* image) {
+  fs::create_directories(dir);
+  const Monst3rFrame& f = t.frames.front();
+  const int w = f.depth.cols, h = f.depth.rows;
+  cv::Mat points(h, w, CV_32FC3), mask(h, w, CV_8UC1), depth = f.depth.clone();
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const float d = depth.at<float>(v, u);
+      const bool ok = std::isfinite(d) && d > 0;
+      mask.at<uint8_t>(v, u) = ok ? 255 : 0;
+      if (!ok) depth.at<float>(v, u) = INFINITY;
+      const Eigen::Vector3d p =
+          f.camera.Unproject(Eigen::Vector2d(u, v), ok ? d : 1.0);
+      points.at<cv::Vec3f>(v, u) = ok ? cv::Vec3f(p.x(), p.y(), p.z())
+                                      : cv::Vec3f(INFINITY, INFINITY, INFINITY);
+    }
+  }
+  WriteExr(dir + "/depth.exr", depth, {"Y"});
+  WriteExr(dir + "/points.exr", points, {"R", "G", "B"});
+  cv::Mat mask3;
+  cv::merge(std::vector<cv::Mat>{mask, mask, mask}, mask3);
+  WriteImageRgb(dir + "/mask.png", mask3);
+  const double fov_x = 2 * std::atan(0.5 * w / f.camera.fx) * 180 / M_PI;
+  const double fov_y = 2 * std::atan(0.5 * h / f.camera.fy) * 180 / M_PI;
+  std::ofstream(dir + "/fov.json")
+      << "{\"fov_x\": " << std::round(fov_x * 100) / 100
+      << ", \"fov_y\": " << std::round(fov_y * 100) / 100 << "}";
+  if (image) WriteImageRgb(dir + "/" + image, f.rgb);
+}
+
+TEST(Reconstruction, MogeMapsFolderIsFrameZero) {
+  const std::string clip = ClipIds().front();
+  const Truth truth = ReadTruth(World() + "/monst3r/" + clip);
+  const std::string root = test::MakeTempDir("recon_moge");
+  WriteMoge(truth, root + "/moge", "image.png");
+  ASSERT_EQ(DetectReconstructionFormat(root + "/moge"),
+            ReconstructionFormat::kMoge);
+  const Monst3rFolder r =
+      ReadReconstruction(ReconstructionFormat::kMoge, root + "/moge");
+  ASSERT_EQ(r.num_frames(), 1);
+  const Monst3rFrame f = r.LoadFrame(0);
+  const Monst3rFrame& g = truth.frames.front();
+  // Intrinsics fitted to points.exr: the truth to 1e-3 px (float32 points).
+  std::printf(
+      "MoGe K fitted: fx %.5f (truth %.5f) cx %.5f (%.5f) cy %.5f "
+      "(%.5f)\n",
+      f.camera.fx, g.camera.fx, f.camera.cx, g.camera.cx, f.camera.cy,
+      g.camera.cy);
+  EXPECT_NEAR(f.camera.fx, g.camera.fx, 1e-3);
+  EXPECT_NEAR(f.camera.fy, g.camera.fy, 1e-3);
+  EXPECT_NEAR(f.camera.cx, g.camera.cx, 1e-3);
+  EXPECT_NEAR(f.camera.cy, g.camera.cy, 1e-3);
+  int64_t valid = 0;
+  for (int k = 0; k < g.depth.rows * g.depth.cols; ++k) {
+    const float a = f.depth.ptr<float>()[k], b = g.depth.ptr<float>()[k];
+    if (std::isfinite(b) && b > 0) {
+      ASSERT_EQ(a, b);
+      ++valid;
+    } else {
+      ASSERT_TRUE(std::isnan(a));
+    }
+  }
+  EXPECT_GT(valid, 0);
+  EXPECT_EQ(cv::norm(f.rgb, g.rgb, cv::NORM_INF), 0);
+  // Without points.exr: the field of view (2 decimals) with the principal
+  // point at the centre: fx within 0.005 deg of fov.
+  fs::remove(root + "/moge/points.exr");
+  const PinholeCamera c =
+      ReadReconstruction(ReconstructionFormat::kMoge, root + "/moge")
+          .cameras()
+          .front();
+  EXPECT_NEAR(c.fx, g.camera.fx, 0.1);
+  EXPECT_NEAR(c.cx, (g.camera.width - 1) / 2.0, 1e-12);
+  // Bad input: a mask of another size; no fov.json nor points.exr.
+  WriteImageRgb(root + "/moge/mask.png", cv::Mat(10, 10, CV_8UC3));
+  ExpectError(ReconstructionFormat::kMoge, root + "/moge",
+              "mask.png: 10x10 but depth.exr is 512x288");
+  fs::remove(root + "/moge/fov.json");
+  ExpectError(ReconstructionFormat::kMoge, root + "/moge",
+              "not a MoGe --maps folder");
+}
+
+// MoGe in the builder: frame 0's depth from the image, its scale from frame
+// 0's LiDAR sweep, every pose from the clip (metric, exact): agrees with the
+// MonST3R-built pairs (whose poses carry the fixture's pose noise).
+TEST(Reconstruction, BuilderTakesMogeFrameZeroAndTheClipTrajectory) {
+  const std::vector<std::string> clips = ClipIds();
+  const std::string root = test::MakeTempDir("recon_moge_build");
+  for (const std::string& clip : clips)
+    WriteMoge(ReadTruth(World() + "/monst3r/" + clip), root + "/in/" + clip,
+              "image.jpg");
+  auto build = [&](const std::string& geometry, const std::string& in) {
+    BuildDatasetOptions o;
+    o.dataroot = World();
+    o.monst3r_root = in;
+    o.geometry = geometry;
+    o.out = root + "/out_" + geometry;
+    o.quiet = true;
+    o.threads = 2;
+    const BuildDatasetSummary s = BuildDataset(o);
+    EXPECT_EQ(s.built, static_cast<int>(clips.size()))
+        << geometry << ": " << ReadAll(o.out + "/failures.jsonl");
+    return o.out;
+  };
+  const std::string ref_out = build("monst3r", World() + "/monst3r");
+  const std::string out = build("moge", root + "/in");
+  for (const std::string& clip : clips) {
+    const PairMeta ref = ReadPairMeta(ref_out + "/pairs/" + clip);
+    const PairMeta m = ReadPairMeta(out + "/pairs/" + clip);
+    EXPECT_EQ(m.geometry_source, "moge");
+    EXPECT_EQ(m.pose_units, "metres");
+    double mean = 0, ref_mean = 0;
+    for (size_t t = 0; t < m.quality.psnr_static.size(); ++t) {
+      mean += m.quality.psnr_static[t].value_or(0) / 25;
+      ref_mean += ref.quality.psnr_static[t].value_or(0) / 25;
+    }
+    std::printf(
+        "moge %s vs monst3r: frame-0 coverage %.4f vs %.4f, PSNR %.2f vs "
+        "%.2f dB; mean static PSNR over 25 frames %.2f vs %.2f dB\n",
+        clip.c_str(), m.quality.coverage.front(), ref.quality.coverage.front(),
+        m.quality.psnr_static.front().value_or(0),
+        ref.quality.psnr_static.front().value_or(0), mean, ref_mean);
+    // Frame 0: the same depth and K (fitted), colours through a JPEG (q 95).
+    EXPECT_NEAR(m.quality.coverage.front(), ref.quality.coverage.front(),
+                0.002);
+    EXPECT_NEAR(m.quality.psnr_static.front().value_or(0),
+                ref.quality.psnr_static.front().value_or(0), 1.0);
+    // Along the clip: true poses instead of noisy ones: not worse than 1 dB.
+    EXPECT_GT(mean, ref_mean - 1.0);
   }
 }
 

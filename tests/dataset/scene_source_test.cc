@@ -79,10 +79,11 @@ SceneInputs Inputs(const std::string& dir) {
 }
 
 TEST(SceneSource, RegistryListsEverySourceAndRejectsUnknownNames) {
-  EXPECT_THAT(SceneSourceNames(),
-              ::testing::ElementsAre("monst3r", "lidar", "lidar-dense",
-                                     "image-depth", "cloud", "depth-folder",
-                                     "vggt", "da3", "cut3r", "megasam", "npz"));
+  EXPECT_THAT(
+      SceneSourceNames(),
+      ::testing::ElementsAre("monst3r", "lidar", "lidar-dense", "image-depth",
+                             "cloud", "depth-folder", "vggt", "da3", "cut3r",
+                             "megasam", "moge", "npz"));
   for (const std::string& name : SceneSourceNames())
     EXPECT_NE(CreateSceneSource(name), nullptr) << name;
   try {
