@@ -27,12 +27,12 @@
 #include <optional>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "apps/cli/cli.h"
 #include "apps/cli/edit_args.h"
 #include "dataset/scene_source.h"
 #include "geometry/image_io.h"
-#include "geometry/reconstruction.h"
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
@@ -142,21 +142,7 @@ RenderInput LoadRenderInput(const RenderArgs& a, const RenderOptions& options) {
     in.image_path = a.image;
     in.intrinsics_path = a.intrinsics;
   } else if (!a.scene.empty()) {
-    // TOOL:PATH, or a PATH whose format is recognised.
-    const size_t colon = a.scene.find(':');
-    if (colon != std::string::npos &&
-        a.scene.find('/') > colon) {  // "vggt:out/predictions.npz"
-      source = ToString(ParseReconstructionFormat(a.scene.substr(0, colon)));
-      in.path = a.scene.substr(colon + 1);
-    } else {
-      const auto format = DetectReconstructionFormat(a.scene);
-      GEODRIVE_CHECK_INPUT(format, a.scene,
-                           ": not a reconstruction this reader recognises; "
-                           "name the tool as TOOL:PATH (monst3r, vggt, da3, "
-                           "cut3r, megasam, npz)");
-      source = ToString(*format);
-      in.path = a.scene;
-    }
+    std::tie(source, in.path) = ParseSceneArgument(a.scene);
   } else {
     source = "monst3r";
     in.path = a.monst3r;

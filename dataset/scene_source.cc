@@ -3,6 +3,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "geometry/reconstruction.h"
 #include "geometry/util/status.h"
 #include "render/footprint.h"
 
@@ -127,6 +128,25 @@ ConditionScene BuildConditionScene(const std::string& name,
     SetCaptureFootprints(scene.camera, scene.scene_from_cam0.Inverse(),
                          &scene.cloud);
   return scene;
+}
+
+std::pair<std::string, std::string> ParseSceneArgument(
+    const std::string& text) {
+  GEODRIVE_CHECK_INPUT(!text.empty(), "--scene", ": empty argument");
+  const size_t colon = text.find(':');
+  // "vggt:out/predictions.npz"; a colon after the first '/' is part of a path.
+  if (colon != std::string::npos && colon > 0 && text.find('/') > colon) {
+    const ReconstructionFormat format =
+        ParseReconstructionFormat(text.substr(0, colon));
+    return {ToString(format), text.substr(colon + 1)};
+  }
+  const std::optional<ReconstructionFormat> format =
+      DetectReconstructionFormat(text);
+  GEODRIVE_CHECK_INPUT(format, text,
+                       ": not a reconstruction this reader recognises; name "
+                       "the tool as TOOL:PATH (monst3r, vggt, da3, cut3r, "
+                       "megasam, moge, npz)");
+  return {ToString(*format), text};
 }
 
 }  // namespace geodrive

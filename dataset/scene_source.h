@@ -15,6 +15,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dataset/drive_clip.h"
@@ -229,5 +230,11 @@ std::unique_ptr<SceneSource> CreateSceneSource(const std::string& name);
 ConditionScene BuildConditionScene(const std::string& name,
                                    const SceneInputs& inputs,
                                    const SceneSourceOptions& options);
+
+// A `--scene` argument: "TOOL:PATH" (TOOL a reconstruction format of
+// geometry/reconstruction.h: monst3r, vggt, da3, cut3r, megasam, moge, npz)
+// or a PATH whose format is detected. Returns {scene source name, path};
+// throws InputError naming the argument otherwise.
+std::pair<std::string, std::string> ParseSceneArgument(const std::string& text);
 
 }  // namespace geodrive

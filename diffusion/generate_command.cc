@@ -29,6 +29,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "apps/cli/cli.h"
@@ -61,7 +62,7 @@ namespace fs = std::filesystem;
 
 struct GenerateArgs {
   std::string image, trajectory, boxes, edit_mode = "3d", geometry, depth,
-                                        intrinsics;
+                                        intrinsics, scene;
   std::string config = "tiny", weights, branch_weights, vae_weights,
               prompt_embeds;
   std::string out, preset = "paper", scheduler = "dpm";
@@ -246,10 +247,12 @@ std::string GenerateVideo(const GenerateArgs& a,
 // <out-dir>_work/<clip_id>/ so that <out-dir> holds only videos.
 int RunGenerateManifest(const GenerateArgs& a) {
   GEODRIVE_CHECK_INPUT(
-      a.geometry.empty() && a.depth.empty() && a.image.empty() &&
-          a.trajectory.empty() && a.boxes.empty() && a.out.empty(),
+      a.geometry.empty() && a.depth.empty() && a.scene.empty() &&
+          a.image.empty() && a.trajectory.empty() && a.boxes.empty() &&
+          a.out.empty(),
       "--manifest reads the first frame and condition video of each pair; "
-      "do not combine it with --geometry, --depth, --image, --trajectory, "
+      "do not combine it with --geometry, --scene, --depth, --image, "
+      "--trajectory, "
       "--boxes or --out");
   GEODRIVE_CHECK_INPUT(!a.out_dir.empty(), "--manifest needs --out-dir");
   GEODRIVE_CHECK_INPUT(a.limit >= 0, "--limit must be >= 0");
@@ -293,9 +296,10 @@ int RunGenerate(const GenerateArgs& a) {
   const Model m = LoadModel(a);
   const int model_frames = m.model_frames, H = m.H, W = m.W;
   GEODRIVE_CHECK_INPUT(!a.out.empty(), "--out is required");
-  GEODRIVE_CHECK_INPUT(a.geometry.empty() != a.depth.empty(),
-                       "give exactly one of --geometry MONST3R_DIR and "
-                       "--depth DEPTH.npy");
+  GEODRIVE_CHECK_INPUT(
+      !a.geometry.empty() + !a.depth.empty() + !a.scene.empty() == 1,
+      "give exactly one of --geometry MONST3R_DIR, --scene TOOL:PATH and "
+      "--depth DEPTH.npy");
   const RenderPreset preset = ParseRenderPreset(a.preset);
 
   // ---- Geometry, first image, trajectory (dataset/scene_source.h) ----
@@ -310,6 +314,8 @@ int RunGenerate(const GenerateArgs& a) {
   std::string source = "monst3r";
   if (!a.geometry.empty()) {
     in.path = a.geometry;
+  } else if (!a.scene.empty()) {
+    std::tie(source, in.path) = ParseSceneArgument(a.scene);
   } else {
     GEODRIVE_CHECK_INPUT(
         !a.image.empty() && !a.intrinsics.empty() && !a.trajectory.empty(),
@@ -327,7 +333,8 @@ int RunGenerate(const GenerateArgs& a) {
   const cv::Mat& image = scene.frame0_rgb;
   if (a.trajectory.empty()) {
     trajectory = scene.trajectory;
-    traj_desc = a.geometry + "/pred_traj.txt";
+    traj_desc = !a.scene.empty() ? a.scene + " (its camera poses)"
+                                 : a.geometry + "/pred_traj.txt";
   } else {
     trajectory = scene.PlaceTrajectory(trajectory);
   }
@@ -406,6 +413,10 @@ CommandRunner SetupGenerate(CLI::App& sub) {
       ->capture_default_str();
   g->add_option("--geometry", a->geometry,
                 "MonST3R output folder (frame-0 depth, intrinsics, poses)");
+  g->add_option("--scene", a->scene,
+                "another reconstruction tool's output as TOOL:PATH (vggt, "
+                "da3, cut3r, megasam, moge, npz, monst3r) or a detected PATH "
+                "(docs/RECONSTRUCTIONS.md), instead of --geometry");
   g->add_option("--depth", a->depth,
                 "frame-0 depth .npy (H, W) of --image (instead of --geometry)");
   g->add_option("--intrinsics", a->intrinsics, "K.txt for --depth");
