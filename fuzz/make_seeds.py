@@ -66,6 +66,38 @@ def npz_seeds():
         out("npz", name, b.getvalue())
 
 
+def reconstruction_seeds():
+    """Each npz format's layout, small (2 frames of 3x4)."""
+    import io
+    rng = np.random.default_rng(9)
+    depth = 1 + rng.random((2, 3, 4), dtype=np.float32)
+    c2w = np.eye(4)[None].repeat(2, 0)
+    c2w[1, 2, 3] = 0.5
+    w2c = np.linalg.inv(c2w)
+    K = np.array([[4.0, 0, 2], [0, 4.0, 1.5], [0, 0, 1]], np.float32)
+    layouts = {
+        "vggt_predictions.npz": (np.savez, dict(
+            extrinsic=w2c[:, :3].astype(np.float32), intrinsic=K[None].repeat(2, 0),
+            depth=depth[..., None], depth_conf=1 + depth,
+            images=rng.random((2, 3, 3, 4), dtype=np.float32))),
+        "da3_results.npz": (np.savez_compressed, dict(
+            image=np.zeros((2, 3, 4, 3), np.uint8), depth=depth,
+            conf=np.round(1 + depth, 2), extrinsics=w2c.astype(np.float32),
+            intrinsics=K[None].repeat(2, 0))),
+        "megasam_sgd_cvd_hr.npz": (np.savez, dict(
+            images=np.zeros((2, 3, 4, 3), np.uint8), depths=depth.astype(np.float16),
+            intrinsic=K, cam_c2w=c2w.astype(np.float32))),
+        "generic.npz": (np.savez, dict(
+            depth=depth, intrinsics=K, cam_c2w=c2w, conf=depth - 1,
+            conf_scale="unit", units="metres",
+            dynamic_mask=np.zeros((2, 3, 4), np.uint8))),
+    }
+    for name, (save, arrays) in layouts.items():
+        b = io.BytesIO()
+        save(b, **arrays)
+        out("reconstruction", name, b.getvalue())
+
+
 def ply_seeds():
     head = "ply\nformat {}\ncomment seed\nelement vertex 3\n" \
            "property float x\nproperty float y\nproperty float z\n" \
@@ -139,6 +171,14 @@ def text_seeds():
     out("trajectory_text", "tum.txt",
         "# timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n"
         "1.5 0.1 0.2 0.3 0 0.0499792 0 0.99875\n")
+    out("trajectory_text", "kitti_poses.txt",
+        "1 0 0 0 0 1 0 0 0 0 1 0\n9.999978e-01 5.272628e-04 -2.066935e-03 -4.690294e-02 "
+        "-5.296506e-04 9.999992e-01 -1.154865e-03 -2.839928e-02 2.066324e-03 "
+        "1.155958e-03 9.999971e-01 8.586941e-01\n")
+    out("trajectory_text", "colmap_images.txt",
+        "# Image list with two lines of data per image:\n"
+        "1 1 0 0 0 0 0 0 1 frame_0000.jpg\n10.5 20.5 -1\n"
+        "2 0.99875 0 0.0499792 0 0.1 0 -1 1 frame_0001.jpg\n\n")
     out("trajectory_text", "intrinsics.txt",
         "256.0 0 256.0 0 256.0 144.0 0 0 1\n256.0 0 256.0 0 256.0 144.0 0 0 1\n")
 
@@ -223,6 +263,7 @@ if __name__ == "__main__":
         sys.exit(0)
     npy_seeds()
     npz_seeds()
+    reconstruction_seeds()
     ply_seeds()
     pcd_seeds()
     bin_seeds()
