@@ -848,3 +848,53 @@ TEST(Reconstruction, BuilderTakesMogeFrameZeroAndTheClipTrajectory) {
 
 }  // namespace
 }  // namespace geodrive
+
+namespace geodrive {
+namespace {
+
+// The writer docs/RECONSTRUCTIONS.md gives for the generic npz, run by NumPy:
+// what it writes is read back as written (str members included).
+TEST(Reconstruction, TheDocumentedNumpyWriterIsRead) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
+  const std::string root = test::MakeTempDir("recon_numpy");
+  const std::string script = root + "/write.py";
+  std::ofstream(script) << R"(import sys
+import numpy as np
+N, H, W = 3, 6, 8
+depth = np.fromfunction(lambda n, y, x: 5 + n + 0.1 * x, (N, H, W))
+K = np.array([[7.0, 0, 3.5], [0, 7.0, 2.5], [0, 0, 1]])
+c2w = np.repeat(np.eye(4)[None], N, 0)
+c2w[:, 2, 3] = np.arange(N) * 0.5          # forward along z
+conf = np.full((N, H, W), 0.25)
+rgb_uint8 = np.zeros((N, H, W, 3), np.uint8)
+np.savez(sys.argv[1],
+         depth=depth.astype(np.float32),          # (N, H, W) z-depth; <= 0 or NaN = no depth
+         intrinsics=K.astype(np.float32),          # (N, 3, 3) or (3, 3), pixels of the depth grid
+         cam_c2w=c2w.astype(np.float64),           # (N, 4, 4) camera-to-world, OpenCV axes (or cam_w2c=...)
+         conf=conf, conf_scale="unit",             # optional: unit | 1+exp | log | logit
+         images=rgb_uint8, units="relative")       # optional: (N, H, W, 3) uint8; "metres" | "relative"
+)";
+  std::string log;
+  ASSERT_EQ(test::RunCommand(std::string(test::kDebianPython) + " " + script +
+                                 " " + root + "/scene.npz",
+                             &log),
+            0)
+      << log;
+  ASSERT_EQ(DetectReconstructionFormat(root + "/scene.npz"),
+            ReconstructionFormat::kGenericNpz);
+  const Monst3rFolder r = ReadReconstruction(ReconstructionFormat::kGenericNpz,
+                                             root + "/scene.npz");
+  ASSERT_EQ(r.num_frames(), 3);
+  EXPECT_EQ(r.width(), 8);
+  EXPECT_EQ(r.height(), 6);
+  EXPECT_EQ(r.units(), "");
+  const Monst3rFrame f = r.LoadFrame(2);
+  EXPECT_FLOAT_EQ(f.depth.at<float>(4, 3), 7.3f);
+  EXPECT_FLOAT_EQ(f.confidence01.at<float>(0, 0), 0.25f);
+  EXPECT_DOUBLE_EQ(f.world_from_cam.translation.z(), 1.0);
+  EXPECT_DOUBLE_EQ(f.camera.fx, 7.0);
+  EXPECT_DOUBLE_EQ(f.camera.cy, 2.5);
+}
+
+}  // namespace
+}  // namespace geodrive

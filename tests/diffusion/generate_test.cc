@@ -15,6 +15,8 @@
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
+#include "geometry/npz.h"
+#include "geometry/reconstruction.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_io.h"
 #include "geometry/trajectory_json.h"
@@ -247,6 +249,65 @@ TEST(DiffusionGenerate, ManifestBatchWritesOneVideoPerPair) {
   // 11 condition frames, tiny model 9 frames: min(9, 11) per pair.
   EXPECT_EQ(ReadVideoFrames(pred[0].path).size(), 9u);
   EXPECT_TRUE(fs::exists(dir + "/pred_work/clip-b/preview.png"));
+}
+
+// `--scene npz:PATH` (any reconstruction tool's output, docs/
+// RECONSTRUCTIONS.md) holding the numbers of a MonST3R folder generates what
+// `--geometry` on that folder does: byte-identical latents.
+TEST(DiffusionGenerate, SceneToolPathMatchesTheMonst3rFolder) {
+  const std::string dir = test::MakeTempDir("generate_scene");
+  const std::string m3r = WriteMonst3rFolder(dir, 9);
+  const std::string w = TinyWeights(dir);
+  const Monst3rFolder folder = Monst3rFolder::Open(m3r);
+  const int n = folder.num_frames(), h = folder.height(), wd = folder.width();
+  std::vector<float> depth;
+  std::vector<double> K, c2w;
+  std::vector<uint8_t> rgb;
+  for (int i = 0; i < n; ++i) {
+    const Monst3rFrame f = folder.LoadFrame(i);
+    depth.insert(depth.end(), f.depth.ptr<float>(),
+                 f.depth.ptr<float>() + h * wd);
+    rgb.insert(rgb.end(), f.rgb.data, f.rgb.data + h * wd * 3);
+    const Eigen::Matrix3d k = f.camera.K();
+    const Eigen::Matrix4d p = f.world_from_cam.ToMatrix();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) K.push_back(k(r, c));
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) c2w.push_back(p(r, c));
+  }
+  WriteNpz(dir + "/scene.npz",
+           {{"depth", NpyArray::Float32({n, h, wd}, depth.data())},
+            {"intrinsics", NpyArray::Float64({n, 3, 3}, K.data())},
+            {"cam_c2w", NpyArray::Float64({n, 4, 4}, c2w.data())},
+            {"images", NpyArray::Uint8({n, h, wd, 3}, rgb.data())}});
+  const std::string common = " --weights " + w +
+                             " --config tiny --frames 7 --steps 2 "
+                             "--no-progress --seed 5 --out ";
+  std::string out;
+  ASSERT_EQ(test::RunCommand(Bin() + " generate --geometry " + m3r + common +
+                                 dir + "/a/video.mp4",
+                             &out),
+            0)
+      << out;
+  ASSERT_EQ(test::RunCommand(Bin() + " generate --scene npz:" + dir +
+                                 "/scene.npz" + common + dir + "/s/video.mp4",
+                             &out),
+            0)
+      << out;
+  for (const char* f : {"cond", "sample"}) {
+    const std::string a =
+        ReadBytes(dir + "/a/video_latents/" + f + ".safetensors");
+    EXPECT_FALSE(a.empty()) << f;
+    EXPECT_EQ(a, ReadBytes(dir + "/s/video_latents/" + f + ".safetensors"))
+        << f;
+  }
+  // --scene with --geometry: one line, exit 2.
+  EXPECT_EQ(test::RunCommand(Bin() + " generate --geometry " + m3r +
+                                 " --scene npz:" + dir + "/scene.npz" + common +
+                                 dir + "/x.mp4",
+                             &out),
+            2);
+  EXPECT_NE(out.find("exactly one of --geometry"), std::string::npos) << out;
 }
 
 TEST(DiffusionGenerate, BadArgumentsExitTwoWithOneLine) {
