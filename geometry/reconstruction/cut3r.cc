@@ -68,7 +68,10 @@ class Cut3rReader : public ReconstructionReader {
     const auto camera = Numbered(path + "/camera", ".npz");
     GEODRIVE_CHECK_INPUT(!depth.empty(), path, "/depth: no NNNNNN.npy files");
     Arrays a;
-    for (const auto& [index, file] : depth) {
+    for (const auto& entry : depth) {
+      // Named copies: clang 14 cannot capture structured bindings.
+      const long index = entry.first;
+      const std::string& file = entry.second;
       const std::string id = std::to_string(index);
       auto need = [&](const std::map<long, std::string>& set,
                       const char* kind) -> const std::string& {
