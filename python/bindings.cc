@@ -1,0 +1,647 @@
+// geodrive._core: the toolkit's core in Python over NumPy arrays (pybind11).
+//
+// Conventions: poses are (T, 4, 4) float64 matrices, world_from_cam unless a
+// name says otherwise; cameras are (3, 3) K in integer-index pixels (OpenCV);
+// images are (H, W, 3) uint8 RGB. Results are NumPy arrays that own their
+// buffers. Every heavy call releases the GIL. InputError (bad input, the CLI's
+// one-line messages) becomes ValueError with the same text.
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <Eigen/Geometry>
+#include <cstring>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "dataset/drive_dataset.h"
+#include "dataset/pairs.h"
+#include "dataset/scene_source.h"
+#include "eval/image_metrics.h"
+#include "eval/trajectory_metrics.h"
+#include "geometry/alignment.h"
+#include "geometry/reconstruction.h"
+#include "geometry/trajectory_edit.h"
+#include "geometry/trajectory_json.h"
+#include "geometry/util/status.h"
+#include "render/renderer.h"
+#include "render/video/video_io.h"
+
+namespace py = pybind11;
+
+namespace geodrive {
+namespace {
+
+template <typename T>
+using CArray = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+// ---- NumPy <-> toolkit types ----
+
+void CheckShape(const py::array& a,
+                std::vector<py::ssize_t> shape,
+                const char* what) {
+  bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
+  for (size_t i = 0; ok && i < shape.size(); ++i)
+    ok = shape[i] < 0 || a.shape(i) == shape[i];
+  if (!ok) {
+    std::string want = "(", have = "(";
+    for (size_t i = 0; i < shape.size(); ++i)
+      want += (i ? ", " : "") +
+              (shape[i] < 0 ? std::string("N") : std::to_string(shape[i]));
+    for (py::ssize_t i = 0; i < a.ndim(); ++i)
+      have += (i ? ", " : "") + std::to_string(a.shape(i));
+    ThrowInputError(what, "shape ", have, "), expected ", want, ")");
+  }
+}
+
+Rigid3d PoseFromArray(const double* m, const char* what) {
+  Eigen::Matrix4d M;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) M(r, c) = m[r * 4 + c];
+  GEODRIVE_CHECK_INPUT(M.allFinite(), what, ": pose is not finite");
+  return Rigid3d::FromMatrix(M, 1e-4);
+}
+
+std::vector<Rigid3d> Poses(const CArray<double>& poses, const char* what) {
+  if (poses.ndim() == 2) {
+    CheckShape(poses, {4, 4}, what);
+    return {PoseFromArray(poses.data(), what)};
+  }
+  CheckShape(poses, {-1, 4, 4}, what);
+  std::vector<Rigid3d> out;
+  for (py::ssize_t i = 0; i < poses.shape(0); ++i)
+    out.push_back(PoseFromArray(poses.data() + 16 * i, what));
+  return out;
+}
+
+CArray<double> PosesToArray(const std::vector<Rigid3d>& poses) {
+  CArray<double> out(
+      {static_cast<py::ssize_t>(poses.size()), py::ssize_t{4}, py::ssize_t{4}});
+  double* p = out.mutable_data();
+  for (const Rigid3d& pose : poses) {
+    const Eigen::Matrix4d m = pose.ToMatrix();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) *p++ = m(r, c);
+  }
+  return out;
+}
+
+Trajectory TrajectoryFrom(const CArray<double>& poses,
+                          const std::optional<CArray<double>>& times,
+                          const char* what) {
+  const std::vector<Rigid3d> p = Poses(poses, what);
+  Trajectory t;
+  for (size_t i = 0; i < p.size(); ++i) {
+    double stamp = static_cast<double>(i);
+    if (times) {
+      GEODRIVE_CHECK_INPUT(
+          times->ndim() == 1 &&
+              times->shape(0) == static_cast<py::ssize_t>(p.size()),
+          what, ": times must be (T,) like the poses");
+      stamp = times->data()[i];
+    }
+    t.Add(stamp, p[i]);
+  }
+  return t;
+}
+
+CArray<double> MatrixToArray(const Eigen::Matrix3d& K) {
+  CArray<double> out({py::ssize_t{3}, py::ssize_t{3}});
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out.mutable_data()[r * 3 + c] = K(r, c);
+  return out;
+}
+
+PinholeCamera CameraFrom(const CArray<double>& K, int width, int height) {
+  CheckShape(K, {3, 3}, "K");
+  const double* k = K.data();
+  GEODRIVE_CHECK_INPUT(
+      k[1] == 0 && k[3] == 0 && k[6] == 0 && k[7] == 0 && k[8] == 1, "K",
+      ": expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]");
+  PinholeCamera c(k[0], k[4], k[2], k[5], width, height);
+  c.Check("K");
+  return c;
+}
+
+// An (H, W, 3) uint8 or (H, W) image as a cv::Mat sharing the buffer.
+cv::Mat ImageView(const CArray<uint8_t>& a, const char* what) {
+  GEODRIVE_CHECK_INPUT((a.ndim() == 3 && a.shape(2) == 3) || a.ndim() == 2,
+                       what, ": expected an (H, W, 3) or (H, W) uint8 image");
+  return cv::Mat(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)),
+                 a.ndim() == 3 ? CV_8UC3 : CV_8UC1,
+                 const_cast<uint8_t*>(a.data()));
+}
+
+template <typename T>
+CArray<T> MatToArray(const cv::Mat& m) {
+  std::vector<py::ssize_t> shape = {m.rows, m.cols};
+  if (m.channels() > 1) shape.push_back(m.channels());
+  CArray<T> out(shape);
+  const size_t row = static_cast<size_t>(m.cols) * m.channels() * sizeof(T);
+  for (int r = 0; r < m.rows; ++r)
+    std::memcpy(
+        out.mutable_data() + static_cast<size_t>(r) * m.cols * m.channels(),
+        m.ptr<T>(r), row);
+  return out;
+}
+
+// ---- Datasets and clips ----
+
+struct PyClip {
+  DriveClip clip;
+};
+
+py::dict BoxToDict(const ClipBox& b) {
+  py::dict d;
+  d["instance_id"] = b.instance_id;
+  d["category"] = b.category;
+  d["center"] =
+      std::vector<double>{b.box.center.x(), b.box.center.y(), b.box.center.z()};
+  d["size_wlh"] =
+      std::vector<double>{b.box.size.x(), b.box.size.y(), b.box.size.z()};
+  d["world_from_box"] = PosesToArray({b.box.WorldFromBox()})[py::int_(0)];
+  return d;
+}
+
+void BindDataset(py::module_& m) {
+  py::class_<DriveDataset, std::shared_ptr<DriveDataset>>(
+      m, "Dataset", "A driving dataset opened by open_dataset().")
+      .def("describe", &DriveDataset::Describe,
+           "One line: format, version, root, scene and clip counts.")
+      .def_property_readonly(
+          "clip_ids", [](const DriveDataset& d) { return d.ClipIds(); },
+          "Clip ids in dataset order (scene, then start frame).")
+      .def_property_readonly("has_lidar", &DriveDataset::HasLidar)
+      .def(
+          "scenes",
+          [](const DriveDataset& d) {
+            std::vector<std::string> scenes;
+            for (const std::string& id : d.ClipIds()) {
+              const std::string s = id.substr(0, id.find('_'));
+              if (scenes.empty() || scenes.back() != s) scenes.push_back(s);
+            }
+            return scenes;
+          },
+          "Scene names, in order (the part of each clip id before '_').")
+      .def(
+          "load_clip",
+          [](const DriveDataset& d, const std::string& id) {
+            py::gil_scoped_release release;
+            return PyClip{d.LoadClip(id)};
+          },
+          py::arg("clip_id"),
+          "The clip: frames, poses, cameras, boxes and its LiDAR sweeps.");
+
+  m.def(
+      "open_dataset",
+      [](const std::string& root, const std::string& version,
+         const std::string& frames, const std::string& channel, int clip_frames,
+         int stride) {
+        DriveDatasetOptions o;
+        o.root = root;
+        o.version = version;
+        o.frames = ParseClipFrameSource(frames);
+        o.channel = channel;
+        o.clip_frames = clip_frames;
+        o.clip_stride = stride;
+        py::gil_scoped_release release;
+        return std::shared_ptr<DriveDataset>(OpenDriveDataset(o));
+      },
+      py::arg("root"), py::arg("version") = "v1.0-mini",
+      py::arg("frames") = "all", py::arg("channel") = "CAM_FRONT",
+      py::arg("clip_frames") = 25, py::arg("stride") = 6,
+      "Opens a nuScenes-format dataset (its tables); frames='keyframes' for "
+      "extracts without sweep files.");
+
+  py::class_<PyClip>(m, "Clip", "One clip (DriveClip of dataset/drive_clip.h).")
+      .def_property_readonly("id", [](const PyClip& c) { return c.clip.id; })
+      .def_property_readonly("scene_name",
+                             [](const PyClip& c) { return c.clip.scene_name; })
+      .def_property_readonly(
+          "num_frames", [](const PyClip& c) { return c.clip.num_frames(); })
+      .def_property_readonly(
+          "timestamps_us",
+          [](const PyClip& c) {
+            CArray<int64_t> t({static_cast<py::ssize_t>(c.clip.num_frames())});
+            for (int i = 0; i < c.clip.num_frames(); ++i)
+              t.mutable_data()[i] = c.clip.frames[i].timestamp_us;
+            return t;
+          },
+          "(T,) int64 capture times in microseconds.")
+      .def_property_readonly("image_paths",
+                             [](const PyClip& c) {
+                               std::vector<std::string> p;
+                               for (const DriveFrame& f : c.clip.frames)
+                                 p.push_back(f.image_path);
+                               return p;
+                             })
+      .def_property_readonly(
+          "world_from_cam",
+          [](const PyClip& c) {
+            std::vector<Rigid3d> p;
+            for (const DriveFrame& f : c.clip.frames)
+              p.push_back(f.world_from_cam);
+            return PosesToArray(p);
+          },
+          "(T, 4, 4) camera-to-world poses (ego pose ∘ calibration), metres.")
+      .def_property_readonly("world_from_ego",
+                             [](const PyClip& c) {
+                               std::vector<Rigid3d> p;
+                               for (const DriveFrame& f : c.clip.frames)
+                                 p.push_back(f.world_from_ego);
+                               return PosesToArray(p);
+                             })
+      .def_property_readonly(
+          "intrinsics",
+          [](const PyClip& c) {
+            CArray<double> K({static_cast<py::ssize_t>(c.clip.num_frames()),
+                              py::ssize_t{3}, py::ssize_t{3}});
+            for (int i = 0; i < c.clip.num_frames(); ++i) {
+              const Eigen::Matrix3d k = c.clip.frames[i].camera.K();
+              for (int r = 0; r < 3; ++r)
+                for (int col = 0; col < 3; ++col)
+                  K.mutable_data()[9 * i + 3 * r + col] = k(r, col);
+            }
+            return K;
+          },
+          "(T, 3, 3) K at the source image size, integer-index pixels.")
+      .def_property_readonly(
+          "image_size",
+          [](const PyClip& c) {
+            const PinholeCamera& cam = c.clip.frames.front().camera;
+            return std::make_pair(cam.width, cam.height);
+          },
+          "(width, height) of the source images.")
+      .def(
+          "boxes",
+          [](const PyClip& c, int frame) {
+            GEODRIVE_CHECK_INPUT(frame >= 0 && frame < c.clip.num_frames(),
+                                 "frame ", frame, " out of range");
+            py::list out;
+            for (const ClipBox& b : c.clip.frames[frame].boxes)
+              out.append(BoxToDict(b));
+            return out;
+          },
+          py::arg("frame"),
+          "Boxes at frame `frame`: dicts with instance_id, category, center "
+          "(world, m), size_wlh, world_from_box (4, 4).")
+      .def(
+          "lidar_sweeps",
+          [](const PyClip& c) {
+            GEODRIVE_CHECK_INPUT(c.clip.lidar, c.clip.id,
+                                 ": the dataset has no LiDAR");
+            py::list out;
+            for (const LidarSweepInfo& s : c.clip.lidar->Sweeps()) {
+              py::dict d;
+              d["timestamp_us"] = s.timestamp_us;
+              d["path"] = s.relative_path;
+              d["world_from_sensor"] =
+                  PosesToArray({s.WorldFromSensor()})[py::int_(0)];
+              out.append(d);
+            }
+            return out;
+          },
+          "The scene's LiDAR sweeps (metadata), in time order.")
+      .def(
+          "load_sweep",
+          [](const PyClip& c, size_t index) {
+            GEODRIVE_CHECK_INPUT(c.clip.lidar, c.clip.id,
+                                 ": the dataset has no LiDAR");
+            GEODRIVE_CHECK_INPUT(index < c.clip.lidar->Sweeps().size(),
+                                 "sweep ", index, " out of range");
+            PointCloud cloud;
+            {
+              py::gil_scoped_release release;
+              cloud = c.clip.lidar->Load(index);
+            }
+            CArray<float> out(
+                {static_cast<py::ssize_t>(cloud.size()), py::ssize_t{5}});
+            float* p = out.mutable_data();
+            for (size_t i = 0; i < cloud.size(); ++i) {
+              p[5 * i + 0] = cloud.positions[i].x();
+              p[5 * i + 1] = cloud.positions[i].y();
+              p[5 * i + 2] = cloud.positions[i].z();
+              p[5 * i + 3] = cloud.HasIntensity() ? cloud.intensity[i] : 0.f;
+              p[5 * i + 4] = cloud.HasRing() ? cloud.ring[i] : 0.f;
+            }
+            return out;
+          },
+          py::arg("index"),
+          "Sweep `index` as an (N, 5) float32 array: x, y, z (sensor frame, "
+          "m), intensity, ring.");
+}
+
+// ---- Scenes ----
+
+struct PyScene {
+  ConditionScene scene;
+};
+
+void BindScenes(py::module_& m) {
+  py::class_<PyScene>(m, "ConditionScene",
+                      "The geometry a condition is rendered from.")
+      .def_property_readonly(
+          "points",
+          [](const PyScene& s) {
+            CArray<float> out({static_cast<py::ssize_t>(s.scene.cloud.size()),
+                               py::ssize_t{3}});
+            float* p = out.mutable_data();
+            for (const Eigen::Vector3f& x : s.scene.cloud.positions)
+              *p++ = x.x(), *p++ = x.y(), *p++ = x.z();
+            return out;
+          },
+          "(N, 3) float32 points in the scene frame.")
+      .def_property_readonly(
+          "colors",
+          [](const PyScene& s) {
+            CArray<uint8_t> out({static_cast<py::ssize_t>(s.scene.cloud.size()),
+                                 py::ssize_t{3}});
+            uint8_t* p = out.mutable_data();
+            if (s.scene.cloud.HasColors()) {
+              for (const Color3u8& c : s.scene.cloud.colors)
+                *p++ = c[0], *p++ = c[1], *p++ = c[2];
+            } else {
+              std::memset(p, 0, s.scene.cloud.size() * 3);
+            }
+            return out;
+          },
+          "(N, 3) uint8 RGB.")
+      .def_property_readonly(
+          "poses",
+          [](const PyScene& s) {
+            return PosesToArray(s.scene.trajectory.world_from_cam);
+          },
+          "(T, 4, 4) scene_from_cam of the source's frames.")
+      .def_property_readonly(
+          "K",
+          [](const PyScene& s) { return MatrixToArray(s.scene.camera.K()); },
+          "(3, 3) frame-0 K on the source's own grid (see image_size).")
+      .def_property_readonly("image_size",
+                             [](const PyScene& s) {
+                               return std::make_pair(s.scene.camera.width,
+                                                     s.scene.camera.height);
+                             })
+      .def(
+          "K_at",
+          [](const PyScene& s, int width, int height) {
+            return MatrixToArray(
+                s.scene.CameraAt(width, height, ResizeMode::kResize).K());
+          },
+          py::arg("width"), py::arg("height"),
+          "K for a render of width x height (the source grid resized).")
+      .def_property_readonly("units",
+                             [](const PyScene& s) { return s.scene.units; })
+      .def_property_readonly(
+          "description", [](const PyScene& s) { return s.scene.description; })
+      .def_property_readonly("scale_report", [](const PyScene& s) {
+        return s.scene.scale.report;
+      });
+
+  m.def(
+      "scene_sources", [] { return SceneSourceNames(); },
+      "The registered scene sources (monst3r, lidar, lidar-dense, vggt, ...).");
+  m.def(
+      "condition_scene",
+      [](const std::string& source, const std::string& path, const PyClip* clip,
+         const std::string& filter) {
+        SceneInputs in;
+        in.path = path;
+        in.clip = clip ? &clip->clip : nullptr;
+        SceneSourceOptions o;
+        GEODRIVE_CHECK_INPUT(filter == "paper" || filter == "released",
+                             "filter", ": '", filter,
+                             "' is not one of paper, released");
+        o.filter = filter == "paper" ? PointmapFilter::kPaper
+                                     : PointmapFilter::kReleased;
+        py::gil_scoped_release release;
+        return PyScene{BuildConditionScene(source, in, o)};
+      },
+      py::arg("source"), py::arg("path") = "", py::arg("clip") = nullptr,
+      py::arg("filter") = "paper",
+      "Builds a scene source's ConditionScene: source is a name of "
+      "scene_sources(); path its input (a MonST3R folder, a VGGT npz, ...); "
+      "clip the clip it is built for (LiDAR scale, lidar sources).");
+  m.def(
+      "reconstruction_format",
+      [](const std::string& path) -> std::optional<std::string> {
+        const auto f = DetectReconstructionFormat(path);
+        if (!f) return std::nullopt;
+        return ToString(*f);
+      },
+      py::arg("path"),
+      "The reconstruction format of a file or folder (vggt, da3, ...) or "
+      "None.");
+}
+
+// ---- Rendering and trajectories ----
+
+void BindRender(py::module_& m) {
+  m.def(
+      "render",
+      [](const CArray<float>& points, const CArray<uint8_t>& colors,
+         const CArray<double>& K, const CArray<double>& cam_from_world,
+         std::pair<int, int> size, const std::string& mode, double radius,
+         double near, double far, int threads) {
+        CheckShape(points, {-1, 3}, "points");
+        CheckShape(colors, {points.shape(0), 3}, "colors");
+        const int H = size.first, W = size.second;
+        RenderOptions o;
+        o.mode = ParseRenderMode(mode);
+        o.width = W;
+        o.height = H;
+        o.radius_px = radius;
+        o.near = near;
+        o.far = far;
+        o.num_threads = threads;
+        o.Check();
+        const PinholeCamera camera = CameraFrom(K, W, H);
+        const std::vector<Rigid3d> poses =
+            Poses(cam_from_world, "cam_from_world");
+        PointCloud cloud;
+        cloud.positions.resize(points.shape(0));
+        cloud.colors.resize(points.shape(0));
+        const float* pp = points.data();
+        const uint8_t* cp = colors.data();
+        for (py::ssize_t i = 0; i < points.shape(0); ++i) {
+          cloud.positions[i] =
+              Eigen::Vector3f(pp[3 * i], pp[3 * i + 1], pp[3 * i + 2]);
+          cloud.colors[i] = Color3u8(cp[3 * i], cp[3 * i + 1], cp[3 * i + 2]);
+        }
+        const py::ssize_t T = static_cast<py::ssize_t>(poses.size());
+        CArray<uint8_t> rgb(
+            {T, py::ssize_t{H}, py::ssize_t{W}, py::ssize_t{3}});
+        CArray<float> depth({T, py::ssize_t{H}, py::ssize_t{W}});
+        py::array_t<bool> valid({T, py::ssize_t{H}, py::ssize_t{W}});
+        uint8_t* rgb_p = rgb.mutable_data();
+        float* depth_p = depth.mutable_data();
+        bool* valid_p = valid.mutable_data();
+        {
+          py::gil_scoped_release release;
+          const RenderResult r = RenderFrames(cloud, {camera}, poses, o);
+          const size_t px = static_cast<size_t>(H) * W;
+          for (py::ssize_t t = 0; t < T; ++t) {
+            const RenderedFrame& f = r.frames[t];
+            std::memcpy(rgb_p + t * px * 3, f.rgb.data, px * 3);
+            std::memcpy(depth_p + t * px, f.depth.data, px * sizeof(float));
+            for (size_t i = 0; i < px; ++i)
+              valid_p[t * px + i] = f.mask.data[i] != kMaskInvalid;
+          }
+        }
+        py::dict out;
+        out["rgb"] = rgb;
+        out["depth"] = depth;
+        out["valid"] = valid;
+        return out;
+      },
+      py::arg("points"), py::arg("colors"), py::arg("K"),
+      py::arg("cam_from_world"), py::arg("size") = std::make_pair(480, 720),
+      py::arg("mode") = "zbuffer", py::arg("radius") = 0.0,
+      py::arg("near") = 0.1, py::arg("far") = 100.0, py::arg("threads") = 0,
+      "Renders (N, 3) float32 points with (N, 3) uint8 colours through K "
+      "(3, 3, for the output size) from each (4, 4) pose of cam_from_world "
+      "(T, 4, 4). size = (H, W). Returns {'rgb': (T, H, W, 3) uint8, "
+      "'depth': (T, H, W) float32 (0 = none), 'valid': (T, H, W) bool}.");
+
+  m.def(
+      "edit_trajectory",
+      [](const CArray<double>& world_from_cam,
+         const std::optional<CArray<double>>& times, double shift_left,
+         double shift_right, double shift_up, double yaw_deg, double speed,
+         bool reverse) {
+        Trajectory t = TrajectoryFrom(world_from_cam, times, "world_from_cam");
+        if (shift_left != 0) t = ShiftLeft(t, shift_left);
+        if (shift_right != 0) t = ShiftRight(t, shift_right);
+        if (shift_up != 0) t = ShiftUp(t, shift_up);
+        if (yaw_deg != 0) t = ApplyYawOffset(t, yaw_deg);
+        GEODRIVE_CHECK_INPUT(speed > 0, "speed", ": must be > 0");
+        if (speed != 1) t = ScaleSpeed(t, speed);
+        if (reverse) t = ReverseOrder(t);
+        return PosesToArray(t.world_from_cam);
+      },
+      py::arg("world_from_cam"), py::arg("times") = py::none(),
+      py::arg("shift_left") = 0.0, py::arg("shift_right") = 0.0,
+      py::arg("shift_up") = 0.0, py::arg("yaw_deg") = 0.0,
+      py::arg("speed") = 1.0, py::arg("reverse") = false,
+      "GeoDrive's trajectory edits (geometry/trajectory_edit.h) on (T, 4, 4) "
+      "world_from_cam poses: shifts in the first camera's axes, a yaw "
+      "offset (degrees, positive = left), a speed factor (times in seconds, "
+      "default the frame index), the path driven backwards.");
+
+  m.def(
+      "read_trajectory",
+      [](const std::string& path) {
+        const Trajectory t = ReadTrajectoryAny(path);
+        CArray<double> times({static_cast<py::ssize_t>(t.size())});
+        for (size_t i = 0; i < t.size(); ++i)
+          times.mutable_data()[i] = t.timestamps[i];
+        return std::make_pair(PosesToArray(t.world_from_cam), times);
+      },
+      py::arg("path"),
+      "Reads any trajectory the CLI reads (TUM, MonST3R, KITTI, COLMAP "
+      "images.txt, JSON, a reconstruction's camera track): (poses (T, 4, 4) "
+      "world_from_cam, times (T,)).");
+}
+
+// ---- Metrics and pairs ----
+
+void BindMetrics(py::module_& m) {
+  m.def(
+      "psnr",
+      [](const CArray<uint8_t>& a, const CArray<uint8_t>& b) {
+        const cv::Mat ma = ImageView(a, "a"), mb = ImageView(b, "b");
+        py::gil_scoped_release release;
+        return Psnr(ma, mb);
+      },
+      py::arg("a"), py::arg("b"), "PSNR (dB) of two uint8 images (peak 255).");
+  m.def(
+      "ssim",
+      [](const CArray<uint8_t>& a, const CArray<uint8_t>& b) {
+        const cv::Mat ma = ImageView(a, "a"), mb = ImageView(b, "b");
+        py::gil_scoped_release release;
+        return Ssim(ma, mb);
+      },
+      py::arg("a"), py::arg("b"),
+      "SSIM of two uint8 images, averaged over channels (skimage's "
+      "gaussian_weights=True, sigma 1.5, channel_axis=-1).");
+  m.def(
+      "ade_fde",
+      [](const CArray<double>& pred, const CArray<double>& gt,
+         const std::string& align) {
+        TrajectoryErrorOptions o;
+        o.alignment = ParseAlignmentType(align);
+        const Trajectory p = TrajectoryFrom(pred, std::nullopt, "pred");
+        const Trajectory g = TrajectoryFrom(gt, std::nullopt, "gt");
+        const TrajectoryErrors e = ComputeTrajectoryErrors(p, g, o);
+        py::dict d;
+        d["ade"] = e.ade;
+        d["fde"] = e.fde;
+        d["rmse"] = e.rmse;
+        d["per_frame"] = e.per_frame;
+        return d;
+      },
+      py::arg("pred"), py::arg("gt"), py::arg("align") = "none",
+      "ADE/FDE of camera centres, (T, 4, 4) world_from_cam each; align: "
+      "none, se3, sim3 or scale (evo's conventions).");
+
+  m.def(
+      "read_manifest",
+      [](const std::string& path) {
+        py::list out;
+        for (const ManifestEntry& e : ReadManifest(path))
+          out.append(py::module_::import("json").attr("loads")(
+              ManifestEntryToJson(e)));
+        return out;
+      },
+      py::arg("path"), "The lines of a build's manifest.jsonl, as dicts.");
+  m.def(
+      "read_meta_json",
+      [](const std::string& pair_dir) {
+        return PairMetaToJson(ReadPairMeta(pair_dir));
+      },
+      py::arg("pair_dir"), "A pair's meta.json, validated, as JSON text.");
+  m.def(
+      "read_video",
+      [](const std::string& path) {
+        std::vector<cv::Mat> frames;
+        {
+          py::gil_scoped_release release;
+          frames = ReadVideoFrames(path);
+        }
+        GEODRIVE_CHECK_INPUT(!frames.empty(), path, ": no frames");
+        const int H = frames[0].rows, W = frames[0].cols;
+        CArray<uint8_t> out({static_cast<py::ssize_t>(frames.size()),
+                             py::ssize_t{H}, py::ssize_t{W}, py::ssize_t{3}});
+        for (size_t t = 0; t < frames.size(); ++t) {
+          GEODRIVE_CHECK_INPUT(frames[t].rows == H && frames[t].cols == W &&
+                                   frames[t].type() == CV_8UC3,
+                               path, ": frame ", t, " has another size");
+          for (int r = 0; r < H; ++r)
+            std::memcpy(out.mutable_data() + (t * H + r) * W * 3,
+                        frames[t].ptr<uint8_t>(r), W * 3);
+        }
+        return out;
+      },
+      py::arg("path"),
+      "Decodes a video (our FFmpeg reader) into (T, H, W, 3) uint8 RGB.");
+}
+
+}  // namespace
+}  // namespace geodrive
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "geodrive: the GeoDrive toolkit's core over NumPy arrays";
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const geodrive::InputError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    }
+  });
+  geodrive::BindDataset(m);
+  geodrive::BindScenes(m);
+  geodrive::BindRender(m);
+  geodrive::BindMetrics(m);
+}

@@ -1,0 +1,64 @@
+"""Type stubs of geodrive (the pybind11 extension geodrive._core)."""
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+import numpy.typing as npt
+
+F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
+U8 = npt.NDArray[np.uint8]
+
+class Clip:
+    id: str
+    scene_name: str
+    num_frames: int
+    timestamps_us: npt.NDArray[np.int64]
+    image_paths: List[str]
+    world_from_cam: F64  # (T, 4, 4)
+    world_from_ego: F64  # (T, 4, 4)
+    intrinsics: F64  # (T, 3, 3)
+    image_size: Tuple[int, int]  # (width, height)
+    def boxes(self, frame: int) -> List[Dict[str, Any]]: ...
+    def lidar_sweeps(self) -> List[Dict[str, Any]]: ...
+    def load_sweep(self, index: int) -> F32: ...  # (N, 5)
+
+class Dataset:
+    clip_ids: List[str]
+    has_lidar: bool
+    def describe(self) -> str: ...
+    def scenes(self) -> List[str]: ...
+    def load_clip(self, clip_id: str) -> Clip: ...
+
+class ConditionScene:
+    points: F32  # (N, 3)
+    colors: U8  # (N, 3)
+    poses: F64  # (T, 4, 4) scene_from_cam
+    K: F64  # (3, 3)
+    image_size: Tuple[int, int]
+    units: str
+    description: str
+    scale_report: str
+    def K_at(self, width: int, height: int) -> F64: ...
+
+def open_dataset(root: str, version: str = "v1.0-mini", frames: str = "all",
+                 channel: str = "CAM_FRONT", clip_frames: int = 25,
+                 stride: int = 6) -> Dataset: ...
+def scene_sources() -> List[str]: ...
+def condition_scene(source: str, path: str = "", clip: Optional[Clip] = None,
+                    filter: str = "paper") -> ConditionScene: ...
+def reconstruction_format(path: str) -> Optional[str]: ...
+def render(points: F32, colors: U8, K: F64, cam_from_world: F64,
+           size: Tuple[int, int] = (480, 720), mode: str = "zbuffer",
+           radius: float = 0.0, near: float = 0.1, far: float = 100.0,
+           threads: int = 0) -> Dict[str, np.ndarray]: ...
+def edit_trajectory(world_from_cam: F64, times: Optional[F64] = None,
+                    shift_left: float = 0.0, shift_right: float = 0.0,
+                    shift_up: float = 0.0, yaw_deg: float = 0.0,
+                    speed: float = 1.0, reverse: bool = False) -> F64: ...
+def read_trajectory(path: str) -> Tuple[F64, F64]: ...
+def psnr(a: U8, b: U8) -> float: ...
+def ssim(a: U8, b: U8) -> float: ...
+def ade_fde(pred: F64, gt: F64, align: str = "none") -> Dict[str, Any]: ...
+def read_manifest(path: str) -> List[Dict[str, Any]]: ...
+def read_meta(pair_dir: str) -> Dict[str, Any]: ...
+def read_video(path: str) -> U8: ...

@@ -1,0 +1,67 @@
+"""PyTorch access to pairs built by ``geodrive build-dataset``.
+
+``PairDataset(manifest)`` yields ``{"gt": (T, 3, H, W), "cond": (T, 3, H, W),
+"meta": dict}``: float32 tensors in [-1, 1], the layout GeoDrive's trainer
+feeds CogVideoX, and the pair's manifest line (flat: clip_id, pair_dir, scene,
+num_frames, geometry_source, pose_units, mean_coverage, options_hash, so the
+default collate batches it; the whole meta.json: ``geodrive.read_meta``); ``frames=49`` pads 25 frames to 49 by repeating the last one
+(upstream's loader). Videos are decoded by the toolkit's own FFmpeg reader
+(geodrive.read_video); each DataLoader worker process opens its own files, so
+``num_workers > 0`` is safe.
+"""
+import os
+
+import numpy as np
+import torch
+
+from . import read_manifest, read_video
+
+__all__ = ["PairDataset"]
+
+
+def _to_tensor(frames, size, frames_out):
+    """(T, H, W, 3) uint8 -> (T', 3, H', W') float32 in [-1, 1]."""
+    x = torch.from_numpy(np.ascontiguousarray(frames)).permute(0, 3, 1, 2)
+    x = x.float().div_(127.5).sub_(1.0)
+    if size is not None and tuple(x.shape[-2:]) != tuple(size):
+        x = torch.nn.functional.interpolate(
+            x, size=tuple(size), mode="bilinear", align_corners=False)
+    if frames_out is not None:
+        if frames_out < 1:
+            raise ValueError("frames must be >= 1")
+        if x.shape[0] >= frames_out:
+            x = x[:frames_out]
+        else:  # repeat the last frame (GeoDrive's 25 -> 49 padding)
+            pad = x[-1:].expand(frames_out - x.shape[0], -1, -1, -1)
+            x = torch.cat([x, pad], 0)
+    return x.contiguous()
+
+
+class PairDataset(torch.utils.data.Dataset):
+    """The pairs listed in a build's manifest.jsonl.
+
+    Args:
+      manifest: path of OUT/manifest.jsonl (pair folders are next to it).
+      frames: frames per item (None = as built; 49 pads 25 -> 49).
+      size: (H, W) to resize to (None = as built).
+    """
+
+    def __init__(self, manifest, frames=None, size=None):
+        self.root = os.path.dirname(os.path.abspath(manifest))
+        self.entries = read_manifest(manifest)
+        self.frames = frames
+        self.size = size
+
+    def __len__(self):
+        return len(self.entries)
+
+    def __getitem__(self, i):
+        e = self.entries[i]
+        pair = os.path.join(self.root, e["pair_dir"])
+        gt = read_video(os.path.join(pair, "gt.mp4"))
+        cond = read_video(os.path.join(pair, "cond.mp4"))
+        return {
+            "gt": _to_tensor(gt, self.size, self.frames),
+            "cond": _to_tensor(cond, self.size, self.frames),
+            "meta": dict(e),
+        }
