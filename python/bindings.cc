@@ -27,6 +27,8 @@
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/status.h"
+#include "render/boxes.h"
+#include "render/dynamic_edit.h"
 #include "render/renderer.h"
 #include "render/video/video_io.h"
 
@@ -504,6 +506,88 @@ void BindRender(py::module_& m) {
       "(3, 3, for the output size) from each (4, 4) pose of cam_from_world "
       "(T, 4, 4). size = (H, W). Returns {'rgb': (T, H, W, 3) uint8, "
       "'depth': (T, H, W) float32 (0 = none), 'valid': (T, H, W) bool}.");
+
+  m.def(
+      "render_with_edits",
+      [](const CArray<float>& points, const CArray<uint8_t>& colors,
+         const CArray<double>& K, const CArray<double>& cam_from_world,
+         const std::string& boxes_json, std::pair<int, int> size,
+         const std::string& mode, const std::vector<std::string>& remove,
+         double radius, std::optional<CArray<uint8_t>> frame0_image) {
+        CheckShape(points, {-1, 3}, "points");
+        CheckShape(colors, {points.shape(0), 3}, "colors");
+        const int H = size.first, W = size.second;
+        RenderOptions ro;
+        ro.width = W;
+        ro.height = H;
+        ro.radius_px = radius;
+        ro.output_instance = true;
+        ro.Check();
+        DynamicEditOptions eo;
+        GEODRIVE_CHECK_INPUT(mode == "3d" || mode == "2d", "mode", ": '", mode,
+                             "' is not one of 3d, 2d");
+        eo.mode = mode == "3d" ? EditMode::k3d : EditMode::k2d;
+        if (frame0_image)
+          eo.frame0_image = ImageView(*frame0_image, "frame0_image").clone();
+        const PinholeCamera camera = CameraFrom(K, W, H);
+        const std::vector<Rigid3d> poses =
+            Poses(cam_from_world, "cam_from_world");
+        const BoxSequences boxes = ReadBoxesJson(boxes_json);
+        std::vector<ObjectEdit> edits;
+        for (const std::string& id : remove) {
+          ObjectEdit e;
+          e.kind = ObjectEditKind::kRemove;
+          e.instance = id;
+          edits.push_back(e);
+        }
+        PointCloud cloud;
+        cloud.positions.resize(points.shape(0));
+        cloud.colors.resize(points.shape(0));
+        for (py::ssize_t i = 0; i < points.shape(0); ++i) {
+          const float* p = points.data() + 3 * i;
+          const uint8_t* c = colors.data() + 3 * i;
+          cloud.positions[i] = Eigen::Vector3f(p[0], p[1], p[2]);
+          cloud.colors[i] = Color3u8(c[0], c[1], c[2]);
+        }
+        const py::ssize_t T = static_cast<py::ssize_t>(poses.size());
+        CArray<uint8_t> rgb(
+            {T, py::ssize_t{H}, py::ssize_t{W}, py::ssize_t{3}});
+        CArray<int32_t> instance({T, py::ssize_t{H}, py::ssize_t{W}});
+        py::array_t<bool> valid({T, py::ssize_t{H}, py::ssize_t{W}});
+        std::vector<std::string> render_ids;
+        {
+          py::gil_scoped_release release;
+          DynamicEditResult r = RenderWithDynamicEdits(cloud, {camera}, poses,
+                                                       boxes, edits, eo, ro);
+          const size_t px = static_cast<size_t>(H) * W;
+          for (py::ssize_t t = 0; t < T; ++t) {
+            const RenderedFrame& f = r.frames[t];
+            std::memcpy(rgb.mutable_data() + t * px * 3, f.rgb.data, px * 3);
+            std::memcpy(instance.mutable_data() + t * px, f.instance.data,
+                        px * sizeof(int32_t));
+            for (size_t i = 0; i < px; ++i)
+              valid.mutable_data()[t * px + i] = f.mask.data[i] != kMaskInvalid;
+          }
+          render_ids = r.render_ids;
+        }
+        py::dict out;
+        out["rgb"] = rgb;
+        out["valid"] = valid;
+        out["instance"] = instance;
+        out["render_ids"] = render_ids;
+        return out;
+      },
+      py::arg("points"), py::arg("colors"), py::arg("K"),
+      py::arg("cam_from_world"), py::arg("boxes"),
+      py::arg("size") = std::make_pair(480, 720), py::arg("mode") = "3d",
+      py::arg("remove") = std::vector<std::string>(), py::arg("radius") = 0.0,
+      py::arg("frame0_image") = py::none(),
+      "Renders with dynamic editing (render/dynamic_edit.h): the objects of "
+      "the box sequences in `boxes` (a boxes.json path, e.g. a pair's) move "
+      "along their boxes (3d) or are pasted from frame0_image (2d); "
+      "`remove` lists instance ids to drop. Returns {'rgb', 'valid', "
+      "'instance' (T, H, W) int32 render id (-1 = background), "
+      "'render_ids' (render id -> instance id)}.");
 
   m.def(
       "edit_trajectory",

@@ -21,6 +21,7 @@ from ._core import (  # noqa: F401
     read_video,
     reconstruction_format,
     render,
+    render_with_edits,
     scene_sources,
     ssim,
 )
@@ -29,7 +30,7 @@ from ._core import read_meta_json as _read_meta_json
 __all__ = [
     "Clip", "ConditionScene", "Dataset", "ade_fde", "condition_scene",
     "edit_trajectory", "open_dataset", "psnr", "read_manifest", "read_meta",
-    "read_trajectory", "read_video", "reconstruction_format", "render",
+    "read_trajectory", "read_video", "reconstruction_format", "render", "render_with_edits",
     "scene_sources", "ssim",
 ]
 

@@ -51,6 +51,11 @@ def render(points: F32, colors: U8, K: F64, cam_from_world: F64,
            size: Tuple[int, int] = (480, 720), mode: str = "zbuffer",
            radius: float = 0.0, near: float = 0.1, far: float = 100.0,
            threads: int = 0) -> Dict[str, np.ndarray]: ...
+def render_with_edits(points: F32, colors: U8, K: F64, cam_from_world: F64,
+                      boxes: str, size: Tuple[int, int] = (480, 720),
+                      mode: str = "3d", remove: Sequence[str] = (),
+                      radius: float = 0.0,
+                      frame0_image: Optional[U8] = None) -> Dict[str, Any]: ...
 def edit_trajectory(world_from_cam: F64, times: Optional[F64] = None,
                     shift_left: float = 0.0, shift_right: float = 0.0,
                     shift_up: float = 0.0, yaw_deg: float = 0.0,
