@@ -19,3 +19,10 @@ case "$loaded" in
   "$work/prefix/"*) echo "installed geodrive loads $loaded" ;;
   *) echo "installed geodrive loaded '$loaded', not the plugin under $work/prefix" >&2; exit 1 ;;
 esac
+
+# The installed Python package (issue 20), when the build has it: importable from the prefix with
+# Debian's interpreter, outside the build tree.
+if [[ -d "$work/prefix/lib/python3/dist-packages/geodrive" ]]; then
+  (cd "$work" && PYTHONPATH="$work/prefix/lib/python3/dist-packages" /usr/bin/python3 -c \
+    "import geodrive, os; assert geodrive.__file__.startswith('$work/prefix'), geodrive.__file__; print('installed geodrive module:', os.path.dirname(geodrive.__file__), len(geodrive.scene_sources()), 'scene sources')")
+fi
