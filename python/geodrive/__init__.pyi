@@ -50,7 +50,8 @@ def reconstruction_format(path: str) -> Optional[str]: ...
 def render(points: F32, colors: U8, K: F64, cam_from_world: F64,
            size: Tuple[int, int] = (480, 720), mode: str = "zbuffer",
            radius: float = 0.0, near: float = 0.1, far: float = 100.0,
-           threads: int = 0) -> Dict[str, np.ndarray]: ...
+           threads: int = 0,
+           out: Optional[Dict[str, np.ndarray]] = None) -> Dict[str, np.ndarray]: ...
 def render_with_edits(points: F32, colors: U8, K: F64, cam_from_world: F64,
                       boxes: str, size: Tuple[int, int] = (480, 720),
                       mode: str = "3d", remove: Sequence[str] = (),

@@ -9,6 +9,7 @@ default collate batches it; the whole meta.json: ``geodrive.read_meta``); ``fram
 (geodrive.read_video); each DataLoader worker process opens its own files, so
 ``num_workers > 0`` is safe.
 """
+import concurrent.futures
 import os
 
 import numpy as np
@@ -17,6 +18,18 @@ import torch
 from . import read_manifest, read_video
 
 __all__ = ["PairDataset"]
+
+_pools = {}
+
+
+def _pool():
+    """A 2-thread pool per process (DataLoader workers are forked: a pool
+    made before the fork has no threads in the child)."""
+    pid = os.getpid()
+    if pid not in _pools:
+        _pools.clear()
+        _pools[pid] = concurrent.futures.ThreadPoolExecutor(2)
+    return _pools[pid]
 
 
 def _to_tensor(frames, size, frames_out):
@@ -58,8 +71,10 @@ class PairDataset(torch.utils.data.Dataset):
     def __getitem__(self, i):
         e = self.entries[i]
         pair = os.path.join(self.root, e["pair_dir"])
-        gt = read_video(os.path.join(pair, "gt.mp4"))
-        cond = read_video(os.path.join(pair, "cond.mp4"))
+        # The two videos decode at once (read_video releases the GIL); each
+        # decode is single-threaded, so the frames are the same everywhere.
+        gt, cond = _pool().map(read_video, [os.path.join(pair, "gt.mp4"),
+                                            os.path.join(pair, "cond.mp4")])
         return {
             "gt": _to_tensor(gt, self.size, self.frames),
             "cond": _to_tensor(cond, self.size, self.frames),

@@ -133,3 +133,19 @@ def test_threads_render_the_same_as_one():
             pts, cols, K, poses, size=(48, 64))["rgb"], range(16)))
     for o in outs:
         np.testing.assert_array_equal(o, ref)
+
+
+def test_render_into_a_previous_result():
+    rng = np.random.default_rng(8)
+    pts, cols, K, poses = make_scene(rng)
+    first = geodrive.render(pts, cols, K, poses, size=(48, 64))
+    expect = {k: v.copy() for k, v in first.items()}
+    pts2, cols2, _, _ = make_scene(rng)
+    geodrive.render(pts2, cols2, K, poses, size=(48, 64), out=first)  # dirty them
+    again = geodrive.render(pts, cols, K, poses, size=(48, 64), out=first)
+    for k in ("rgb", "depth", "valid"):
+        assert again[k] is first[k]
+        np.testing.assert_array_equal(again[k], expect[k])
+    assert set(np.unique(again["valid"].view(np.uint8))) <= {0, 1}
+    with pytest.raises(ValueError, match="do not match this render"):
+        geodrive.render(pts, cols, K, poses[:2], size=(48, 64), out=first)
