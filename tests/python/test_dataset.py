@@ -124,3 +124,38 @@ def test_the_readme_example_runs(real_scene, tmp_path):
     assert out.startswith("(25, 480, 720, 3) ")
     assert 0.4 < float(out.split()[-1]) < 0.7     # frame 0 seen from 3 m left
     assert os.path.getsize(tmp_path / "cond.png") > 10000
+
+
+def test_read_trajectory_reads_the_real_kitti_poses():
+    path = os.path.join(REAL, "kitti_odometry_00", "00.txt")
+    poses, times = geodrive.read_trajectory(path)
+    raw = np.loadtxt(path).reshape(-1, 3, 4)
+    assert poses.shape == (4541, 4, 4) and times.shape == (4541,)
+    np.testing.assert_allclose(poses[:, :3, 3], raw[:, :, 3], atol=1e-12)
+    np.testing.assert_allclose(poses[:, :3, :3], raw[:, :, :3], atol=1e-6)
+    np.testing.assert_allclose(times, np.loadtxt(os.path.join(REAL, "kitti_odometry_00", "times.txt")))
+
+
+def test_a_numpy_written_reconstruction_is_a_scene(tmp_path):
+    """The generic npz written by NumPy: recognised, read as a scene source,
+    its points the unprojection of its depth (checked with NumPy)."""
+    N, H, W = 3, 6, 8
+    depth = np.fromfunction(lambda n, y, x: 5 + n + 0.1 * x, (N, H, W)).astype(np.float32)
+    K = np.array([[7.0, 0, 3.5], [0, 7.0, 2.5], [0, 0, 1]])
+    c2w = np.repeat(np.eye(4)[None], N, 0)
+    c2w[:, 2, 3] = np.arange(N) * 0.5
+    path = tmp_path / "scene.npz"
+    np.savez(path, depth=depth, intrinsics=K, cam_c2w=c2w, units="metres",
+             images=np.full((N, H, W, 3), 200, np.uint8))
+    assert geodrive.reconstruction_format(str(path)) == "npz"
+    assert geodrive.reconstruction_format(str(tmp_path)) == "npz"
+    assert geodrive.reconstruction_format(REAL) is None
+    scene = geodrive.condition_scene("npz", path=str(path), filter="released")
+    assert scene.units == "metres" and scene.image_size == (W, H)
+    v, u = np.mgrid[0:H, 0:W]
+    z = depth[0]
+    expect = np.stack([(u - 3.5) / 7 * z, (v - 2.5) / 7 * z, z], -1).reshape(-1, 3)
+    np.testing.assert_allclose(scene.points, expect, rtol=1e-6)
+    np.testing.assert_allclose(scene.poses[:, 2, 3], [0, 0.5, 1.0])
+    assert (scene.colors == 200).all()
+    assert "npz" in geodrive.scene_sources()
