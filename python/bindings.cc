@@ -372,6 +372,38 @@ void BindScenes(py::module_& m) {
           },
           "(N, 3) uint8 RGB.")
       .def_property_readonly(
+          "footprints",
+          [](const PyScene& s) -> std::optional<CArray<float>> {
+            const PointCloud& c = s.scene.cloud;
+            if (!c.HasFootprints()) return std::nullopt;
+            CArray<float> out({static_cast<py::ssize_t>(c.size())});
+            std::copy(c.footprints.begin(), c.footprints.end(),
+                      out.mutable_data());
+            return out;
+          },
+          "(N,) float32 capture footprints (the side of the pixel that saw "
+          "each point, in scene units; render(..., footprints=) draws points "
+          "seen closer than at capture over their magnified footprint), or "
+          "None.")
+      .def_property_readonly(
+          "footprint_axes",
+          [](const PyScene& s) -> std::optional<CArray<float>> {
+            const PointCloud& c = s.scene.cloud;
+            if (c.footprint_u.empty()) return std::nullopt;
+            CArray<float> out(
+                {static_cast<py::ssize_t>(c.size()), py::ssize_t{6}});
+            float* p = out.mutable_data();
+            for (size_t i = 0; i < c.size(); ++i) {
+              for (int k = 0; k < 3; ++k) p[6 * i + k] = c.footprint_u[i][k];
+              for (int k = 0; k < 3; ++k)
+                p[6 * i + 3 + k] = c.footprint_v[i][k];
+            }
+            return out;
+          },
+          "(N, 6) float32: each capture pixel as a surface patch, its "
+          "displacement per capture pixel along x (first 3) and y (last 3) "
+          "in scene units; or None (then square footprints).")
+      .def_property_readonly(
           "poses",
           [](const PyScene& s) {
             return PosesToArray(s.scene.trajectory.world_from_cam);
@@ -446,7 +478,10 @@ void BindRender(py::module_& m) {
       [](const CArray<float>& points, const CArray<uint8_t>& colors,
          const CArray<double>& K, const CArray<double>& cam_from_world,
          std::pair<int, int> size, const std::string& mode, double radius,
-         double near, double far, int threads, py::object out) {
+         double near, double far, int threads, py::object out,
+         std::optional<CArray<float>> footprints,
+         std::optional<CArray<float>> footprint_axes,
+         double max_magnification) {
         CheckShape(points, {-1, 3}, "points");
         CheckShape(colors, {points.shape(0), 3}, "colors");
         const int H = size.first, W = size.second;
@@ -458,6 +493,11 @@ void BindRender(py::module_& m) {
         o.near = near;
         o.far = far;
         o.num_threads = threads;
+        if (footprints) {
+          CheckShape(*footprints, {points.shape(0)}, "footprints");
+          o.splat_size = SplatSize::kFootprint;
+          o.max_footprint_magnification = max_magnification;
+        }
         o.Check();
         const PinholeCamera camera = CameraFrom(K, W, H);
         const std::vector<Rigid3d> poses =
@@ -471,6 +511,23 @@ void BindRender(py::module_& m) {
           cloud.positions[i] =
               Eigen::Vector3f(pp[3 * i], pp[3 * i + 1], pp[3 * i + 2]);
           cloud.colors[i] = Color3u8(cp[3 * i], cp[3 * i + 1], cp[3 * i + 2]);
+        }
+        if (footprints)
+          cloud.footprints.assign(footprints->data(),
+                                  footprints->data() + points.shape(0));
+        if (footprint_axes) {
+          GEODRIVE_CHECK_INPUT(footprints.has_value(), "footprint_axes",
+                               ": given without footprints");
+          CheckShape(*footprint_axes, {points.shape(0), 6}, "footprint_axes");
+          cloud.footprint_u.resize(points.shape(0));
+          cloud.footprint_v.resize(points.shape(0));
+          const float* a = footprint_axes->data();
+          for (py::ssize_t i = 0; i < points.shape(0); ++i) {
+            cloud.footprint_u[i] =
+                Eigen::Vector3f(a[6 * i], a[6 * i + 1], a[6 * i + 2]);
+            cloud.footprint_v[i] =
+                Eigen::Vector3f(a[6 * i + 3], a[6 * i + 4], a[6 * i + 5]);
+          }
         }
         const py::ssize_t T = static_cast<py::ssize_t>(poses.size());
         // The output arrays: those of `out` (a previous result of the same
@@ -551,13 +608,19 @@ void BindRender(py::module_& m) {
       py::arg("cam_from_world"), py::arg("size") = std::make_pair(480, 720),
       py::arg("mode") = "zbuffer", py::arg("radius") = 0.0,
       py::arg("near") = 0.1, py::arg("far") = 100.0, py::arg("threads") = 0,
-      py::arg("out") = py::none(),
+      py::arg("out") = py::none(), py::arg("footprints") = py::none(),
+      py::arg("footprint_axes") = py::none(),
+      py::arg("max_magnification") = 8.0,
       "Renders (N, 3) float32 points with (N, 3) uint8 colours through K "
       "(3, 3, for the output size) from each (4, 4) pose of cam_from_world "
       "(T, 4, 4). size = (H, W). Returns {'rgb': (T, H, W, 3) uint8, "
       "'depth': (T, H, W) float32 (0 = none), 'valid': (T, H, W) bool}; "
       "out= a previous result of the same shapes renders into its arrays "
-      "(no fresh allocation, as a loop over clips wants).");
+      "(no fresh allocation, as a loop over clips wants). footprints= (N,) "
+      "capture footprints (ConditionScene.footprints, with its "
+      "footprint_axes when it has them) gives the footprint preset: points "
+      "seen closer than at capture cover their magnified capture pixel, up "
+      "to max_magnification (z-buffer mode).");
 
   m.def(
       "render_with_edits",

@@ -32,6 +32,8 @@ class Dataset:
 class ConditionScene:
     points: F32  # (N, 3)
     colors: U8  # (N, 3)
+    footprints: Optional[F32]  # (N,) capture footprints, or None
+    footprint_axes: Optional[F32]  # (N, 6) surface axes per capture pixel, or None
     poses: F64  # (T, 4, 4) scene_from_cam
     K: F64  # (3, 3)
     image_size: Tuple[int, int]
@@ -51,7 +53,10 @@ def render(points: F32, colors: U8, K: F64, cam_from_world: F64,
            size: Tuple[int, int] = (480, 720), mode: str = "zbuffer",
            radius: float = 0.0, near: float = 0.1, far: float = 100.0,
            threads: int = 0,
-           out: Optional[Dict[str, np.ndarray]] = None) -> Dict[str, np.ndarray]: ...
+           out: Optional[Dict[str, np.ndarray]] = None,
+           footprints: Optional[F32] = None,
+           footprint_axes: Optional[F32] = None,
+           max_magnification: float = 8.0) -> Dict[str, np.ndarray]: ...
 def render_with_edits(points: F32, colors: U8, K: F64, cam_from_world: F64,
                       boxes: str, size: Tuple[int, int] = (480, 720),
                       mode: str = "3d", remove: Sequence[str] = (),
