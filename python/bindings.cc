@@ -217,7 +217,10 @@ void BindDataset(py::module_& m) {
       py::arg("clip_frames") = 25, py::arg("stride") = 6,
       "Opens a nuScenes-format dataset (its tables); frames='keyframes' for "
       "extracts without sweep files.");
+}
 
+// The clip: frames, poses, cameras, boxes, LiDAR sweeps.
+void BindClip(py::module_& m) {
   py::class_<PyClip>(m, "Clip", "One clip (DriveClip of dataset/drive_clip.h).")
       .def_property_readonly("id", [](const PyClip& c) { return c.clip.id; })
       .def_property_readonly("scene_name",
@@ -621,7 +624,10 @@ void BindRender(py::module_& m) {
       "footprint_axes when it has them) gives the footprint preset: points "
       "seen closer than at capture cover their magnified capture pixel, up "
       "to max_magnification (z-buffer mode).");
+}
 
+// Rendering with dynamic editing along box sequences.
+void BindEditedRender(py::module_& m) {
   m.def(
       "render_with_edits",
       [](const CArray<float>& points, const CArray<uint8_t>& colors,
@@ -703,7 +709,10 @@ void BindRender(py::module_& m) {
       "`remove` lists instance ids to drop. Returns {'rgb', 'valid', "
       "'instance' (T, H, W) int32 render id (-1 = background), "
       "'render_ids' (render id -> instance id)}.");
+}
 
+// Trajectory edits and readers.
+void BindTrajectories(py::module_& m) {
   m.def(
       "edit_trajectory",
       [](const CArray<double>& world_from_cam,
@@ -840,7 +849,10 @@ PYBIND11_MODULE(_core, m) {
     }
   });
   geodrive::BindDataset(m);
+  geodrive::BindClip(m);
   geodrive::BindScenes(m);
   geodrive::BindRender(m);
+  geodrive::BindEditedRender(m);
+  geodrive::BindTrajectories(m);
   geodrive::BindMetrics(m);
 }

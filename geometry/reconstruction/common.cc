@@ -21,7 +21,7 @@ std::string ShapeText(const std::vector<int64_t>& shape) {
 }
 
 // Any numeric array as doubles (float64 kept exact).
-std::vector<double> ToDoubles(const NpyArray& array) {
+std::vector<double> AsDoubles(const NpyArray& array) {
   std::vector<double> out(static_cast<size_t>(array.NumElements()));
   if (array.dtype == NpyDtype::kFloat64) {
     std::copy(array.Data<double>(), array.Data<double>() + out.size(),
@@ -202,7 +202,7 @@ std::vector<Rigid3d> Poses(const NpyArray& array,
   GEODRIVE_CHECK_INPUT(
       s.size() == 3 && s[0] >= 1 && (s[1] == 3 || s[1] == 4) && s[2] == 4, what,
       ": shape ", ShapeText(array.shape), ", expected (N, 3, 4) or (N, 4, 4)");
-  const std::vector<double> data = ToDoubles(array);
+  const std::vector<double> data = AsDoubles(array);
   const int rows = static_cast<int>(s[1]);
   std::vector<Rigid3d> poses;
   for (int64_t i = 0; i < s[0]; ++i) {
@@ -226,7 +226,7 @@ std::vector<PinholeCamera> Cameras(const NpyArray& array,
       shared || (s.size() == 3 && s[0] == num_frames && s[1] == 3 && s[2] == 3),
       what, ": shape ", ShapeText(s), ", expected (3, 3) or (", num_frames,
       ", 3, 3)");
-  const std::vector<double> d = ToDoubles(array);
+  const std::vector<double> d = AsDoubles(array);
   std::vector<PinholeCamera> cameras;
   for (int i = 0; i < num_frames; ++i) {
     const double* k = d.data() + (shared ? 0 : 9 * i);

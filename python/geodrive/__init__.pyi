@@ -1,4 +1,4 @@
-"""Type stubs of geodrive (the pybind11 extension geodrive._core)."""
+"""Type hints of geodrive (the pybind11 extension geodrive._core)."""
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
