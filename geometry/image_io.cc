@@ -787,9 +787,10 @@ void WriteImageRgb(const std::string& path, const cv::Mat& rgb) {
   if (rgb.empty()) ThrowInputError(path, "cannot write an empty image");
   const int type = rgb.type();
   if (type != CV_8UC1 && type != CV_16UC1 && type != CV_8UC3 &&
-      type != CV_8UC4) {
+      type != CV_16UC3 && type != CV_8UC4) {
     ThrowInputError(path, "cannot write image of OpenCV type ", type,
-                    " (expected 8-bit RGB, RGBA or gray, or 16-bit gray)");
+                    " (expected 8-bit RGB, RGBA or gray, or 16-bit RGB or "
+                    "gray)");
   }
   const std::string name = LowerFileName(path);
   const size_t dot = name.rfind('.');

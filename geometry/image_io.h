@@ -44,7 +44,8 @@ cv::Mat ReadImageRgbScaled(const std::string& path,
                            int min_height);
 
 // Writes an RGB CV_8UC3 image (also RGBA CV_8UC4, gray CV_8UC1 and, PNG only,
-// 16-bit gray CV_16UC1); the format follows the extension (.png, .jpg/.jpeg).
+// 16-bit gray CV_16UC1 and 16-bit RGB CV_16UC3); the format follows the
+// extension (.png, .jpg/.jpeg).
 // PNG: libspng, compression level 3, deterministic, exact round trip. JPEG:
 // TurboJPEG, quality 95, 4:2:0 (gray stays gray, alpha is dropped).
 void WriteImageRgb(const std::string& path, const cv::Mat& rgb);

@@ -351,11 +351,22 @@ TEST(ImageIo, RgbaPngRoundTripsAndOpenCvReadsOurFiles) {
   WriteImageRgb(dir + "/depth.png", depth);
   EXPECT_TRUE(
       Identical(cv::imread(dir + "/depth.png", cv::IMREAD_UNCHANGED), depth));
+  // 16-bit RGB (geodrive-diffusion vae-decode --out-frames): BGR when read
+  // unchanged, by us and by OpenCV.
+  const cv::Mat rgb16 = RandomImage(11, 7, CV_16UC3);
+  WriteImageRgb(dir + "/rgb16.png", rgb16);
+  cv::Mat bgr16;
+  cv::cvtColor(rgb16, bgr16, cv::COLOR_RGB2BGR);
+  EXPECT_TRUE(Identical(ReadImageUnchanged(dir + "/rgb16.png"), bgr16));
+  EXPECT_TRUE(
+      Identical(cv::imread(dir + "/rgb16.png", cv::IMREAD_UNCHANGED), bgr16));
+  // JPEG has no 16-bit form.
+  EXPECT_THROW(WriteImageRgb(dir + "/rgb16.jpg", rgb16), InputError);
 }
 
 TEST(ImageIo, PngWritesAreDeterministic) {
   const std::string dir = test::MakeTempDir("img_determinism");
-  for (int type : {CV_8UC3, CV_8UC1, CV_8UC4, CV_16UC1}) {
+  for (int type : {CV_8UC3, CV_8UC1, CV_8UC4, CV_16UC1, CV_16UC3}) {
     const cv::Mat image = RandomImage(64, 64, type);
     WriteImageRgb(dir + "/a.png", image);
     WriteImageRgb(dir + "/b.png", image);
