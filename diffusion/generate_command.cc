@@ -38,6 +38,8 @@
 #include "dataset/scene_source.h"
 #include "diffusion/config.h"
 #include "diffusion/model.h"
+#include "diffusion/runtime_cli.h"
+#include "diffusion/runtime_torch.h"
 #include "diffusion/safetensors.h"
 #include "diffusion/sampler.h"
 #include "diffusion/vae.h"
@@ -73,6 +75,7 @@ struct GenerateArgs {
   uint64_t seed = 0;
   double guidance = 6.0, conditioning_scale = 1.0, fps = 8.0;
   bool dynamic_cfg = false, no_progress = false;
+  RuntimeArgs runtime;  // --device, --dtype, --vae-dtype, --attention, ...
 };
 
 // RGB uint8 frames -> [1, 3, F, H, W] float32 in [-1, 1].
@@ -109,6 +112,8 @@ struct Model {
   DiTConfig dit;
   VaeConfig vc;
   int model_frames = 0, H = 0, W = 0;
+  RuntimeOptions runtime;
+  AttentionBackend attention = AttentionBackend::kAuto;
 };
 
 Model LoadModel(const GenerateArgs& a) {
@@ -125,18 +130,27 @@ Model LoadModel(const GenerateArgs& a) {
   m.W = m.dit.latent_width * m.vc.spatial_compression;
   GEODRIVE_CHECK_INPUT(!a.weights.empty(), "--weights is required");
   GEODRIVE_CHECK_INPUT(a.fps > 0, "--fps must be positive");
+  m.runtime = a.runtime.Parse();
+  m.attention = a.runtime.Attention();
   return m;
 }
 
-Weights LoadVae(const GenerateArgs& a, const VaeConfig& vc) {
+// The VAE on the compute device in --vae-dtype.
+Weights LoadVae(const GenerateArgs& a, const Model& m) {
+  const VaeConfig& vc = m.vc;
+  WeightPlacement placement;
+  placement.device = m.runtime.device;
+  placement.dtype = m.runtime.vae_dtype;
   if (a.vae_weights.empty()) {
-    GEODRIVE_CHECK_INPUT(a.config == "tiny", "--config ", a.config,
+    GEODRIVE_CHECK_INPUT(vc.name == "tiny", "--config ", a.config,
                          " needs --vae-weights (diffusers vae/"
                          "diffusion_pytorch_model.safetensors)");
-    return VaeInitWeights(vc, a.seed);
+    return VaeInitWeights(vc, a.seed)
+        .To(ComputeOptions(placement.device, placement.dtype));
   }
   LoadReport report;
-  return LoadWeights(a.vae_weights, VaeParamSpecs(vc), "", true, &report);
+  return LoadWeights(a.vae_weights, VaeParamSpecs(vc), "", true, &report,
+                     placement);
 }
 
 // Encodes the first image and the condition frames (resized to the model size,
@@ -178,11 +192,12 @@ std::string GenerateVideo(const GenerateArgs& a,
     // Latent mean (upstream samples the posterior; the mean is deterministic)
     // x scaling_factor, as [B, F, C, h, w] for the transformer.
     const at::Tensor image_lat =
-        (VaeEncode(vc, vae, FramesToTensor({first})) * sf)
+        (VaeEncode(vc, vae, FramesToTensor({first})).to(at::kFloat).cpu() * sf)
             .permute({0, 2, 1, 3, 4})
             .contiguous();
     const at::Tensor cond_lat =
-        (VaeEncode(vc, vae, FramesToTensor(cond_padded)) * sf)
+        (VaeEncode(vc, vae, FramesToTensor(cond_padded)).to(at::kFloat).cpu() *
+         sf)
             .permute({0, 2, 1, 3, 4})
             .contiguous();
     SaveSafetensors((work / "image.safetensors").string(),
@@ -207,6 +222,8 @@ std::string GenerateVideo(const GenerateArgs& a,
   so.dynamic_cfg = a.dynamic_cfg;
   so.conditioning_scale = a.conditioning_scale;
   so.progress = !a.no_progress;
+  so.runtime = m.runtime;
+  so.attention = m.attention;
   so.Check();
   const SampleResult sr = Sample(so);
 
@@ -221,7 +238,8 @@ std::string GenerateVideo(const GenerateArgs& a,
     at::NoGradGuard no_grad;
     const at::Tensor z =
         (sample.to(at::kFloat) / sf).permute({0, 2, 1, 3, 4}).contiguous();
-    video_frames = TensorToFrames(VaeDecode(vc, vae, z), frames);
+    video_frames =
+        TensorToFrames(VaeDecode(vc, vae, z).to(at::kFloat).cpu(), frames);
   }
   VideoWriteOptions vo;
   vo.fps = a.fps;
@@ -263,7 +281,7 @@ int RunGenerateManifest(const GenerateArgs& a) {
   const std::string build_dir = manifest_path.has_parent_path()
                                     ? manifest_path.parent_path().string()
                                     : std::string(".");
-  const Weights vae = LoadVae(a, m.vc);
+  const Weights vae = LoadVae(a, m);
   const fs::path out_dir(a.out_dir);
   const fs::path work_root(a.out_dir + "_work");
   int done = 0;
@@ -382,7 +400,7 @@ int RunGenerate(const GenerateArgs& a) {
   const fs::path dir =
       out_path.has_parent_path() ? out_path.parent_path() : fs::path(".");
   const std::string stem = out_path.stem().string();
-  const Weights vae = LoadVae(a, m.vc);
+  const Weights vae = LoadVae(a, m);
   std::cout << GenerateVideo(a, m, vae, image, cond, frames, a.out,
                              (dir / (stem + "_preview.png")).string(),
                              dir / (stem + "_latents"))
@@ -463,6 +481,8 @@ CommandRunner SetupGenerate(CLI::App& sub) {
       ->capture_default_str();
   g->add_option("--fps", a->fps, "video frame rate")->capture_default_str();
   g->add_flag("--no-progress", a->no_progress, "no progress bar");
+  AddRuntimeOptions(*g, &a->runtime,
+                    kRuntimeVae | kRuntimeAttention | kRuntimeOffload);
   return [a] { return RunGenerate(*a); };
 }
 

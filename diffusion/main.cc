@@ -12,6 +12,7 @@
 
 #include "apps/cli/cli.h"
 #include "diffusion/config.h"
+#include "diffusion/runtime_cli.h"
 #include "diffusion/sampler.h"
 #include "diffusion/train.h"
 #include "geodrive_version.h"
@@ -25,6 +26,7 @@ const char kPresets[] = "preset: cogvideox-5b-i2v or tiny";
 CommandRunner SetupSample(CLI::App& cmd) {
   struct Args {
     SampleOptions so;
+    RuntimeArgs runtime;
     bool no_progress = false;
   };
   auto a = std::make_shared<Args>();
@@ -74,8 +76,11 @@ CommandRunner SetupSample(CLI::App& cmd) {
                  "feed-forward tokens per chunk")
       ->capture_default_str();
   cmd.add_flag("--no-progress", a->no_progress, "no progress bar");
+  AddRuntimeOptions(cmd, &a->runtime, kRuntimeAttention | kRuntimeOffload);
   return [a] {
     a->so.progress = !a->no_progress;
+    a->so.runtime = a->runtime.Parse();
+    a->so.attention = a->runtime.Attention();
     std::cout << Sample(a->so).BriefReport() << std::endl;
     return 0;
   };
@@ -107,6 +112,7 @@ CommandRunner SetupInitWeights(CLI::App& cmd) {
 CommandRunner SetupCheckWeights(CLI::App& cmd) {
   struct Args {
     std::string config = "cogvideox-5b-i2v", weights, branch;
+    RuntimeArgs runtime;
   };
   auto a = std::make_shared<Args>();
   cmd.add_option("--config", a->config, kPresets)->capture_default_str();
@@ -115,9 +121,11 @@ CommandRunner SetupCheckWeights(CLI::App& cmd) {
       ->required();
   cmd.add_option("--branch-weights", a->branch,
                  "encoder .safetensors or .index.json");
+  AddRuntimeOptions(cmd, &a->runtime, kRuntimeOffload);
   return [a] {
     bool ok = false;
-    std::cout << CheckWeights(a->config, a->weights, a->branch, &ok)
+    std::cout << CheckWeights(a->config, a->weights, a->branch, &ok,
+                              a->runtime.Parse())
               << std::endl;
     return ok ? 0 : 2;
   };
@@ -181,7 +189,8 @@ int main(int argc, char** argv) {
   program.name = "geodrive-diffusion";
   program.description =
       "geodrive-diffusion " GEODRIVE_VERSION
-      " -- LibTorch (CPU) runtime for the GeoDrive video diffusion model: "
+      " -- LibTorch runtime (CPU, or CUDA with a CUDA LibTorch: --device) for "
+      "the GeoDrive video diffusion model: "
       "frozen CogVideoX-5B-I2V backbone plus the condition encoder.\n"
       "Run `geodrive-diffusion <command> --help` for the options of a "
       "command.";

@@ -2,11 +2,14 @@
 
 #include <ATen/ATen.h>
 #include <ATen/CPUGeneratorImpl.h>
-#include <glog/logging.h>
+#include <c10/util/Exception.h>
+#include <torch/version.h>
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
+#include "diffusion/runtime_torch.h"
 #include "diffusion/safetensors.h"
 #include "geometry/util/status.h"
 
@@ -15,8 +18,8 @@ namespace diffusion {
 
 const at::Tensor& Weights::Get(const std::string& name) const {
   auto it = tensors.find(name);
-  CHECK(it != tensors.end())
-      << "diffusion weights have no tensor '" << name << "'";
+  TORCH_CHECK(it != tensors.end(), "diffusion weights have no tensor '", name,
+              "'");
   return it->second;
 }
 
@@ -34,6 +37,31 @@ Weights Weights::Clone() const {
   out.order = order;
   for (const auto& [name, t] : tensors) out.tensors[name] = t.detach().clone();
   return out;
+}
+
+Weights Weights::Subset(const std::string& prefix) const {
+  Weights out;
+  for (const auto& name : order) {
+    if (name.compare(0, prefix.size(), prefix) == 0)
+      out.Set(name, tensors.at(name));
+  }
+  return out;
+}
+
+Weights Weights::To(const at::TensorOptions& options) const {
+  Weights out;
+  out.order = order;
+  for (const auto& [name, t] : tensors) {
+    out.tensors[name] =
+        t.to(options.device(), options.dtype().toScalarType(), true);
+  }
+  return out;
+}
+
+int64_t Weights::Bytes() const {
+  int64_t n = 0;
+  for (const auto& [name, t] : tensors) n += t.numel() * t.element_size();
+  return n;
 }
 
 void ForwardOptions::Check() const {
@@ -77,15 +105,61 @@ at::Tensor LayerNorm(const Weights& w,
 }
 
 // x [B, H, Nv, hd]: out = x·cos + rot(x)·sin, rot maps interleaved pairs (a, b)
-// -> (-b, a).
+// -> (-b, a). In float32 and cast back, as diffusers' apply_rotary_emb; the
+// tables are on x's device.
 at::Tensor ApplyRotary(const at::Tensor& x, const RotaryTables& rope) {
-  auto sizes = x.sizes().vec();
+  const at::Tensor xf = x.to(at::kFloat);
+  auto sizes = xf.sizes().vec();
   sizes.back() /= 2;
   sizes.push_back(2);
-  at::Tensor pairs = x.reshape(sizes);
+  at::Tensor pairs = xf.reshape(sizes);
   at::Tensor re = pairs.select(-1, 0), im = pairs.select(-1, 1);
   at::Tensor rotated = at::stack({im.neg(), re}, -1).flatten(-2);
-  return x * rope.cos + rotated * rope.sin;
+  return (xf * rope.cos + rotated * rope.sin).to(x.scalar_type());
+}
+
+// softmax(q kᵀ / √hd) v over [B, H, N, hd] with the scores of at most
+// `chunk_bytes` materialised at a time (chunks of heads x queries).
+at::Tensor ChunkedAttention(const at::Tensor& q_in,
+                            const at::Tensor& k,
+                            const at::Tensor& v,
+                            int64_t chunk_bytes) {
+  const int64_t B = q_in.size(0), H = q_in.size(1), N = q_in.size(2);
+  const int64_t hd = q_in.size(3);
+  const at::Tensor q = q_in * (1.0 / std::sqrt(static_cast<double>(hd)));
+  const at::Tensor kt = k.transpose(-1, -2);
+  // Chunk sizes: scores of one chunk are B x heads x queries x N elements.
+  const int64_t row_bytes = B * N * q.element_size();
+  const int64_t rows = std::max<int64_t>(1, chunk_bytes / row_bytes);
+  const int64_t q_chunk = std::min(N, rows);
+  const int64_t h_chunk = std::max<int64_t>(1, std::min(H, rows / q_chunk));
+  std::vector<at::Tensor> head_out;
+  for (int64_t h0 = 0; h0 < H; h0 += h_chunk) {
+    const int64_t hn = std::min(h_chunk, H - h0);
+    at::Tensor qh = q.narrow(1, h0, hn), kh = kt.narrow(1, h0, hn),
+               vh = v.narrow(1, h0, hn);
+    std::vector<at::Tensor> rows_out;
+    for (int64_t q0 = 0; q0 < N; q0 += q_chunk) {
+      const int64_t qn = std::min(q_chunk, N - q0);
+      at::Tensor s = at::matmul(qh.narrow(2, q0, qn), kh);
+      s = at::softmax(s, -1);
+      rows_out.push_back(at::matmul(s, vh));
+    }
+    head_out.push_back(rows_out.size() == 1 ? rows_out[0]
+                                            : at::cat(rows_out, 2));
+  }
+  return head_out.size() == 1 ? head_out[0] : at::cat(head_out, 1);
+}
+
+// The same through LibTorch's fused kernel (scale 1/√hd inside).
+at::Tensor FusedAttention(const at::Tensor& q,
+                          const at::Tensor& k,
+                          const at::Tensor& v) {
+#if TORCH_VERSION_MAJOR >= 2
+  return at::scaled_dot_product_attention(q, k, v);
+#else
+  return std::get<0>(at::_scaled_dot_product_attention(q, k, v));
+#endif
 }
 
 // Joint attention over x = [text; video] tokens [B, N, D]; returns [B, N, D]
@@ -114,30 +188,10 @@ at::Tensor Attention(const DiTConfig& c,
                  ApplyRotary(k.narrow(2, text_len, N - text_len), rope)},
                 2);
   }
-  q = q * (1.0 / std::sqrt(static_cast<double>(hd)));
-  at::Tensor kt = k.transpose(-1, -2);
-  // Chunk sizes: scores of one chunk are B x heads x queries x N floats.
-  const int64_t row_bytes = B * N * int64_t{sizeof(float)};
-  const int64_t rows =
-      std::max<int64_t>(1, opt.attention_chunk_bytes / row_bytes);
-  const int64_t q_chunk = std::min(N, rows);
-  const int64_t h_chunk = std::max<int64_t>(1, std::min(H, rows / q_chunk));
-  std::vector<at::Tensor> head_out;
-  for (int64_t h0 = 0; h0 < H; h0 += h_chunk) {
-    const int64_t hn = std::min(h_chunk, H - h0);
-    at::Tensor qh = q.narrow(1, h0, hn), kh = kt.narrow(1, h0, hn),
-               vh = v.narrow(1, h0, hn);
-    std::vector<at::Tensor> rows_out;
-    for (int64_t q0 = 0; q0 < N; q0 += q_chunk) {
-      const int64_t qn = std::min(q_chunk, N - q0);
-      at::Tensor s = at::matmul(qh.narrow(2, q0, qn), kh);
-      s = at::softmax(s, -1);
-      rows_out.push_back(at::matmul(s, vh));
-    }
-    head_out.push_back(rows_out.size() == 1 ? rows_out[0]
-                                            : at::cat(rows_out, 2));
-  }
-  at::Tensor o = head_out.size() == 1 ? head_out[0] : at::cat(head_out, 1);
+  at::Tensor o =
+      ResolveAttentionBackend(opt.attention) == AttentionBackend::kFused
+          ? FusedAttention(q, k, v)
+          : ChunkedAttention(q, k, v, opt.attention_chunk_bytes);
   o = o.transpose(1, 2).reshape({B, N, H * hd});
   return Linear(w, p + "to_out.0", o);
 }
@@ -195,11 +249,12 @@ void PatchEmbed(const DiTConfig& c,
                        "prompt embeddings must be [", B, ", L, ",
                        c.text_embed_dim, "], got ",
                        ShapeToString(text_embeds.sizes().vec()));
-  at::Tensor x = at::conv2d(latents.reshape({B * F, C, H, W}), pw,
+  const at::TensorOptions compute = pw.options();
+  at::Tensor x = at::conv2d(latents.to(compute).reshape({B * F, C, H, W}), pw,
                             w.Get("patch_embed.proj.bias"), {p, p});
   const int64_t D = x.size(1), hw = x.size(2) * x.size(3);
   x = x.view({B, F, D, hw}).transpose(2, 3).reshape({B, F * hw, D});
-  at::Tensor t = Linear(w, "patch_embed.text_proj", text_embeds);
+  at::Tensor t = Linear(w, "patch_embed.text_proj", text_embeds.to(compute));
   at::Tensor emb = at::cat({t, x}, 1);
   if (c.use_learned_pos) {
     const at::Tensor& pos = w.Get("patch_embed.pos_embedding");
@@ -224,7 +279,26 @@ void CheckLatents(const at::Tensor& latents, const char* what) {
 
 }  // namespace
 
-Weights InitWeights(const std::vector<ParamSpec>& specs, uint64_t seed) {
+namespace {
+
+// A tensor (CPU, any dtype) converted to the placement: pinned host memory for
+// the offloaded blocks, else the compute device.
+at::Tensor Place(const at::Tensor& t,
+                 const std::string& name,
+                 const WeightPlacement& placement) {
+  at::Tensor out = t.to(ToScalarType(placement.dtype));
+  const bool host = placement.host_blocks &&
+                    StartsWith(name, "transformer_blocks.") &&
+                    placement.device.is_cuda();
+  if (host) return out.is_pinned() ? out : out.pin_memory();
+  return out.to(ToTorchDevice(placement.device));
+}
+
+}  // namespace
+
+Weights InitWeights(const std::vector<ParamSpec>& specs,
+                    uint64_t seed,
+                    const WeightPlacement& placement) {
   at::Generator gen = at::make_generator<at::CPUGeneratorImpl>(seed);
   Weights w;
   const auto opts = at::TensorOptions().dtype(at::kFloat);
@@ -245,7 +319,7 @@ Weights InitWeights(const std::vector<ParamSpec>& specs, uint64_t seed) {
     } else {
       t = at::randn(s.shape, gen, opts) * 0.02;
     }
-    w.Set(s.name, t);
+    w.Set(s.name, Place(t, s.name, placement));
   }
   return w;
 }
@@ -253,13 +327,18 @@ Weights InitWeights(const std::vector<ParamSpec>& specs, uint64_t seed) {
 Weights InitBranchFromBackbone(const DiTConfig& c,
                                const Weights& backbone,
                                uint64_t seed) {
-  Weights w = InitWeights(BranchParamSpecs(c), seed);
+  // The encoder is placed like the backbone's non-block weights.
+  const at::Tensor& ref = backbone.Get("patch_embed.proj.weight");
+  Weights w = InitWeights(BranchParamSpecs(c), seed)
+                  .To(at::TensorOptions()
+                          .device(ref.device())
+                          .dtype(ref.scalar_type()));
   for (const std::string& name : w.order) {
     bool copy = StartsWith(name, "time_embedding.");
     for (int k = 0; k < c.branch_layers; ++k) {
       copy |= StartsWith(name, "transformer_blocks." + std::to_string(k) + ".");
     }
-    if (copy) w.Set(name, backbone.Get(name).detach().clone());
+    if (copy) w.Set(name, backbone.Get(name).detach().to(ref.device()).clone());
   }
   const at::Tensor& bw = backbone.Get("patch_embed.proj.weight");
   const int64_t lat = c.out_channels;
@@ -277,7 +356,8 @@ Weights LoadWeights(const std::string& path,
                     const std::vector<ParamSpec>& specs,
                     const std::string& prefix,
                     bool strict,
-                    LoadReport* report) {
+                    LoadReport* report,
+                    const WeightPlacement& placement) {
   SafetensorsCheckpoint ckpt(path);
   std::vector<ParamSpec> in_file;
   for (const auto& e : ckpt.entries()) {
@@ -307,7 +387,7 @@ Weights LoadWeights(const std::string& path,
       ThrowInputError(path, "tensor '", stored, "' has non-float dtype ",
                       ckpt.Entry(stored).dtype);
     }
-    w.Set(s.name, t.to(at::kFloat));
+    w.Set(s.name, Place(t, s.name, placement));
   }
   if (report != nullptr) *report = std::move(r);
   return w;
@@ -360,14 +440,19 @@ at::Tensor TimeEmbedding(const DiTConfig& c,
                          const Weights& w,
                          const at::Tensor& timesteps) {
   const int64_t half = c.inner_dim() / 2;
+  const at::Tensor& w1 = w.Get("time_embedding.linear_1.weight");
+  const auto f32 = at::TensorOptions().device(w1.device()).dtype(at::kFloat);
   at::Tensor exponent =
-      at::arange(half, at::kFloat) * static_cast<float>(-std::log(10000.0));
+      at::arange(half, f32) * static_cast<float>(-std::log(10000.0));
   exponent = exponent / static_cast<float>(half - c.freq_shift);
   at::Tensor args =
-      timesteps.to(at::kFloat).unsqueeze(1) * at::exp(exponent).unsqueeze(0);
+      timesteps.to(f32).unsqueeze(1) * at::exp(exponent).unsqueeze(0);
   at::Tensor emb = c.flip_sin_to_cos
                        ? at::cat({at::cos(args), at::sin(args)}, 1)
                        : at::cat({at::sin(args), at::cos(args)}, 1);
+  // The sinusoid in float32, the MLP in the weights' dtype (diffusers casts
+  // t_emb to the hidden states' dtype).
+  emb = emb.to(w1.scalar_type());
   at::Tensor h = at::silu(Linear(w, "time_embedding.linear_1", emb));
   return Linear(w, "time_embedding.linear_2", h);
 }
@@ -395,6 +480,40 @@ void BlockForward(const DiTConfig& c,
   *text = *text + n[3] * f.narrow(1, 0, L);
 }
 
+namespace {
+
+// The RoPE tables on the device of `like` (float32).
+RotaryTables RotaryOn(const RotaryTables& rope, const at::Tensor& like) {
+  if (rope.cos.device() == like.device()) return rope;
+  return {rope.cos.to(like.device()), rope.sin.to(like.device())};
+}
+
+// One backbone block: its weights copied to the compute device first when
+// offloaded, through options.block_forward when set.
+void RunBlock(const DiTConfig& c,
+              const Weights& w,
+              const std::string& prefix,
+              const at::Tensor& temb,
+              const RotaryTables& rope,
+              const ForwardOptions& opt,
+              at::Tensor* video,
+              at::Tensor* text) {
+  Weights on_device;
+  const Weights* bw = &w;
+  if (opt.offload_blocks &&
+      w.Get(prefix + "norm1.linear.weight").device() != video->device()) {
+    on_device = w.Subset(prefix).To(video->options());
+    bw = &on_device;
+  }
+  if (opt.block_forward) {
+    opt.block_forward(c, *bw, prefix, temb, rope, opt, video, text);
+  } else {
+    BlockForward(c, *bw, prefix, temb, rope, opt, video, text);
+  }
+}
+
+}  // namespace
+
 at::Tensor BackboneForward(const DiTConfig& c,
                            const Weights& w,
                            const at::Tensor& latents,
@@ -409,14 +528,14 @@ at::Tensor BackboneForward(const DiTConfig& c,
   at::Tensor temb = TimeEmbedding(c, w, timesteps);
   at::Tensor video, text;
   PatchEmbed(c, w, latents, text_embeds, &video, &text);
-  const RotaryTables rope = Rotary3D(c, F, H / p, W / p);
+  const RotaryTables rope = RotaryOn(Rotary3D(c, F, H / p, W / p), video);
   const int interval =
       branch.empty() ? 1
                      : static_cast<int>((c.num_layers + branch.size() - 1) /
                                         branch.size());
   for (int i = 0; i < c.num_layers; ++i) {
-    BlockForward(c, w, "transformer_blocks." + std::to_string(i) + ".", temb,
-                 rope, opt, &video, &text);
+    const std::string prefix = "transformer_blocks." + std::to_string(i) + ".";
+    RunBlock(c, w, prefix, temb, rope, opt, &video, &text);
     if (!branch.empty()) video = video + branch[i / interval];
   }
   video = LayerNorm(w, "norm_final", video, c.norm_eps);
@@ -451,7 +570,7 @@ std::vector<at::Tensor> BranchForward(const DiTConfig& c,
   at::Tensor temb = TimeEmbedding(c, w, timesteps);
   at::Tensor video, text;
   PatchEmbed(c, w, at::cat({noisy, cond}, 2), text_embeds, &video, &text);
-  const RotaryTables rope = Rotary3D(c, F, H / p, W / p);
+  const RotaryTables rope = RotaryOn(Rotary3D(c, F, H / p, W / p), video);
   std::vector<at::Tensor> out;
   for (int k = 0; k < c.branch_layers; ++k) {
     const std::string b = std::to_string(k);

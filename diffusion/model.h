@@ -1,17 +1,21 @@
 #pragma once
 // CogVideoX-style DiT (diffusers CogVideoXTransformer3DModel) and GeoDrive's
 // condition encoder (CogvideoXBranchModel), written functionally over named
-// tensors so the state-dict names are exactly diffusers'. All compute is
-// float32 on CPU; checkpoints of any float dtype are converted.
+// tensors so the state-dict names are exactly diffusers'. The forward runs on
+// the device and in the dtype of the weights (diffusion/runtime.h): inputs are
+// cast to them, the timestep sinusoid and RoPE are computed in float32 as
+// diffusers does, and the outputs are in the weights' dtype.
 
 #include <ATen/core/Tensor.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "diffusion/config.h"
+#include "diffusion/runtime.h"
 
 namespace geodrive {
 namespace diffusion {
@@ -31,9 +35,42 @@ struct Weights {
   void SetRequiresGrad(bool requires_grad);
   // A deep copy (clones every tensor).
   Weights Clone() const;
+  // The tensors whose names start with `prefix` (same names, not copied).
+  Weights Subset(const std::string& prefix) const;
+  // Every tensor converted to `options` (device and dtype); tensors already
+  // there are shared, not copied.
+  Weights To(const at::TensorOptions& options) const;
+  // Total bytes of the tensors' data.
+  int64_t Bytes() const;
 };
 
-// Memory bounds of the forward pass.
+// Where loaded or initialised weights are put.
+struct WeightPlacement {
+  // Device of the computation.
+  DeviceSpec device;
+  // Dtype the weights are converted to (a checkpoint already in this dtype is
+  // not converted: a BF16 file loads into bf16 without a float32 copy).
+  ComputeDtype dtype = ComputeDtype::kFloat32;
+  // Keep `transformer_blocks.*` in host memory (pinned when the device is
+  // CUDA), in `dtype`; the forward moves one block at a time (ForwardOptions::
+  // offload_blocks).
+  bool host_blocks = false;
+};
+
+struct RotaryTables;
+struct ForwardOptions;
+
+// The signature of BlockForward (ForwardOptions::block_forward).
+using BlockForwardFn = std::function<void(const DiTConfig& config,
+                                          const Weights& w,
+                                          const std::string& prefix,
+                                          const at::Tensor& temb,
+                                          const RotaryTables& rope,
+                                          const ForwardOptions& options,
+                                          at::Tensor* video,
+                                          at::Tensor* text)>;
+
+// Memory bounds and kernels of the forward pass.
 struct ForwardOptions {
   // Attention scores are materialised for at most this many bytes per chunk
   // (heads x queries x keys x 4). 5B at 17,776 tokens: one head x 2,048 queries
@@ -42,13 +79,26 @@ struct ForwardOptions {
   // The feed-forward runs over at most this many tokens at a time (5B: 4,096 x
   // 12,288 x 4 B).
   int64_t ff_token_chunk = 4096;
+  // Attention kernel.
+  AttentionBackend attention = AttentionBackend::kAuto;
+  // The backbone's blocks are in host memory (WeightPlacement::host_blocks):
+  // copy each block's weights to the compute device (that of
+  // `patch_embed.proj.weight`) for its forward, then drop the copy.
+  bool offload_blocks = false;
+  // Runs one block in place of BlockForward when set (train: gradient
+  // checkpointing of the backbone's blocks).
+  BlockForwardFn block_forward;
   void Check() const;
 };
 
 // Random initialisation from the spec table (deterministic for `seed`):
 // Linear/Conv weights N(0, 1/fan_in), biases N(0, 0.02), LayerNorm weight 1 /
 // bias 0, pos_embedding N(0, 0.02).
-Weights InitWeights(const std::vector<ParamSpec>& specs, uint64_t seed);
+// Each tensor is drawn in float32 on the CPU and then converted to
+// `placement` (the same numbers on every device, rounded to its dtype).
+Weights InitWeights(const std::vector<ParamSpec>& specs,
+                    uint64_t seed,
+                    const WeightPlacement& placement = {});
 
 // The encoder as `CogvideoXBranchModel.from_transformer`: blocks
 // 0..branch_layers-1 and the time embedding copied from the backbone; the patch
@@ -60,22 +110,25 @@ Weights InitBranchFromBackbone(const DiTConfig& config,
                                uint64_t seed);
 
 // Loads `specs` from a safetensors file or sharded index (names may carry
-// `prefix`, e.g. "branch."), converting to float32. Fills `report`; throws
-// InputError when the checkpoint cannot be read, or when `strict` and names are
-// missing or shapes mismatch.
+// `prefix`, e.g. "branch."), one tensor at a time: each is read from the
+// mapping, converted to `placement`'s dtype and moved to its device before the
+// next is read (peak host memory: one tensor, plus the blocks kept on the host
+// with host_blocks). Fills `report`; throws InputError when the checkpoint
+// cannot be read, or when `strict` and names are missing or shapes mismatch.
 Weights LoadWeights(const std::string& path,
                     const std::vector<ParamSpec>& specs,
                     const std::string& prefix,
                     bool strict,
-                    LoadReport* report);
+                    LoadReport* report,
+                    const WeightPlacement& placement = {});
 // Appends weights (in module order, names prefixed) to a list for
 // SaveSafetensors.
 void AppendForSave(const Weights& weights,
                    const std::string& prefix,
                    std::vector<std::pair<std::string, at::Tensor>>* out);
 
-// 3D RoPE tables (cos, sin), each [video_tokens, head_dim] float32, frame-major
-// token order.
+// 3D RoPE tables (cos, sin), each [video_tokens, head_dim] float32 on the CPU,
+// frame-major token order (the forward moves them to the compute device).
 struct RotaryTables {
   at::Tensor cos, sin;
 };

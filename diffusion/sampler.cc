@@ -9,10 +9,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <set>
 #include <sstream>
 
 #include "diffusion/config.h"
 #include "diffusion/model.h"
+#include "diffusion/runtime_torch.h"
 #include "diffusion/safetensors.h"
 #include "diffusion/schedule.h"
 #include "diffusion/scheduler.h"
@@ -44,11 +46,17 @@ at::Tensor DpmStep(const at::Tensor& v,
   const DpmCoefficients k = DpmStepCoefficients(
       at_, ap, old_x0.defined() ? aback : -1.0, prev_nonneg);
   at::Tensor x0 = x * k.x0_from_x - v * k.x0_from_v;
-  at::Tensor noise = at::randn(x.sizes(), gen, x.options());
+  // Noise from the CPU generator, moved to x's device: the same numbers on
+  // every device.
+  auto draw = [&] {
+    return at::randn(x.sizes(), gen, x.options().device(at::kCPU))
+        .to(x.device());
+  };
+  at::Tensor noise = draw();
   at::Tensor prev = x * k.mult1 - x0 * k.mult2 + noise * k.noise;
   if (k.second_order) {
     at::Tensor d = x0 * k.mult3 - old_x0 * k.mult4;
-    noise = at::randn(x.sizes(), gen, x.options());
+    noise = draw();
     prev = x * k.mult1 - d * k.mult2 + noise * k.noise;
   }
   if (x0_out != nullptr) *x0_out = x0;
@@ -78,7 +86,8 @@ std::string SampleResult::BriefReport() const {
   std::ostringstream os;
   os << "sampled " << steps << " steps in " << seconds << " s"
      << (guidance_used ? " with classifier-free guidance" : " without guidance")
-     << " -> " << out;
+     << " on " << runtime << ", " << weight_bytes / 1e6 << " MB of weights -> "
+     << out;
   return os.str();
 }
 
@@ -136,6 +145,7 @@ void DrawProgress(int done, int total, int64_t t, double elapsed) {
 
 SampleResult Sample(const SampleOptions& o) {
   o.Check();
+  o.runtime.Check();
   const auto start = std::chrono::steady_clock::now();
   c10::InferenceMode guard;
   DiTConfig cfg = ConfigPreset(o.config);
@@ -143,17 +153,28 @@ SampleResult Sample(const SampleOptions& o) {
   ForwardOptions fwd;
   fwd.attention_chunk_bytes = o.attention_chunk_mb << 20;
   fwd.ff_token_chunk = o.ff_token_chunk;
+  fwd.attention = o.attention;
+  fwd.offload_blocks = o.runtime.offload_backbone;
+  WeightPlacement placement;
+  placement.device = o.runtime.device;
+  placement.dtype = o.runtime.dtype;
+  placement.host_blocks = o.runtime.offload_backbone;
+  WeightPlacement branch_placement = placement;
+  branch_placement.host_blocks = false;
+  // Scheduler state, noise and latents: float32 on the compute device.
+  const at::TensorOptions f32 =
+      ComputeOptions(o.runtime.device, ComputeDtype::kFloat32);
 
   LoadReport report;
-  Weights backbone =
-      LoadWeights(o.weights, BackboneParamSpecs(cfg), "", true, &report);
+  Weights backbone = LoadWeights(o.weights, BackboneParamSpecs(cfg), "", true,
+                                 &report, placement);
   Weights branch;
   if (!o.branch_weights.empty()) {
     branch = LoadWeights(o.branch_weights, BranchParamSpecs(cfg), "", false,
-                         &report);
+                         &report, branch_placement);
   } else if (HasPrefix(o.weights, "branch.")) {
     branch = LoadWeights(o.weights, BranchParamSpecs(cfg), "branch.", false,
-                         &report);
+                         &report, branch_placement);
   } else {
     branch = InitBranchFromBackbone(cfg, backbone, o.seed);
   }
@@ -188,6 +209,8 @@ SampleResult Sample(const SampleOptions& o) {
         {image, at::zeros({B, F - image.size(1), C, H, W}, image.options())},
         1);
   }
+  cond = cond.to(f32);
+  image = image.to(f32);
 
   // Text: [negative; positive] for classifier-free guidance.
   at::Tensor pos, neg;
@@ -219,6 +242,8 @@ SampleResult Sample(const SampleOptions& o) {
   } else {
     pos = at::zeros({B, cfg.text_seq_len, cfg.text_embed_dim});
   }
+  pos = pos.to(f32);
+  if (neg.defined()) neg = neg.to(f32);
   const bool use_cfg = neg.defined() && o.guidance != 1.0;
   at::Tensor text = use_cfg ? at::cat({neg, pos}, 0) : pos;
   at::Tensor image_in = use_cfg ? at::cat({image, image}, 0) : image;
@@ -229,18 +254,18 @@ SampleResult Sample(const SampleOptions& o) {
   const std::vector<int64_t> ts = InferenceTimesteps(sc, o.steps);
   const int64_t stride = sc.num_train_timesteps / o.steps;
   at::Generator gen = at::make_generator<at::CPUGeneratorImpl>(o.seed);
-  at::Tensor x =
-      at::randn({B, F, C, H, W}, gen, at::kFloat);  // init_noise_sigma = 1
+  // init_noise_sigma = 1; drawn on the CPU (same numbers on every device).
+  at::Tensor x = at::randn({B, F, C, H, W}, gen, at::kFloat).to(f32);
   at::Tensor old_x0;
   for (size_t i = 0; i < ts.size(); ++i) {
     const int64_t t = ts[i];
     at::Tensor x_in = use_cfg ? at::cat({x, x}, 0) : x;
-    at::Tensor tt =
-        at::full({x_in.size(0)}, static_cast<double>(t), at::kFloat);
+    at::Tensor tt = at::full({x_in.size(0)}, static_cast<double>(t), f32);
     std::vector<at::Tensor> res =
         BranchForward(cfg, branch, x_in, cond_in, text, tt, fwd);
     at::Tensor v = BackboneForward(cfg, backbone, at::cat({x_in, image_in}, 2),
-                                   text, tt, res, fwd);
+                                   text, tt, res, fwd)
+                       .to(at::kFloat);
     if (use_cfg) {
       const double g = o.dynamic_cfg
                            ? DynamicGuidanceScale(o.guidance, o.steps, t)
@@ -265,8 +290,12 @@ SampleResult Sample(const SampleOptions& o) {
     }
   }
   CheckFinite(x, "sampled latents");
-  SaveSafetensors(o.out, {{"latents", x}},
+  SaveSafetensors(o.out, {{"latents", x.cpu()}},
                   {{"config", cfg.name},
+                   {"device", o.runtime.device.ToString()},
+                   {"dtype", DtypeName(o.runtime.dtype)},
+                   {"attention",
+                    AttentionBackendName(ResolveAttentionBackend(o.attention))},
                    {"seed", std::to_string(o.seed)},
                    {"steps", std::to_string(o.steps)},
                    {"scheduler", o.scheduler},
@@ -275,6 +304,8 @@ SampleResult Sample(const SampleOptions& o) {
   r.out = o.out;
   r.steps = o.steps;
   r.guidance_used = use_cfg;
+  r.runtime = o.runtime.BriefReport();
+  r.weight_bytes = backbone.Bytes() + branch.Bytes();
   r.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
           .count();
@@ -320,8 +351,11 @@ std::string InitWeightsFile(const InitWeightsOptions& o) {
 std::string CheckWeights(const std::string& config,
                          const std::string& weights,
                          const std::string& branch_weights,
-                         bool* ok) {
+                         bool* ok,
+                         const RuntimeOptions& runtime) {
+  runtime.Check();
   const DiTConfig cfg = ConfigPreset(config);
+  std::set<std::string> stored_dtypes;
   auto compare = [&](const std::string& path,
                      const std::vector<ParamSpec>& specs,
                      const std::string& prefix) {
@@ -331,6 +365,7 @@ std::string CheckWeights(const std::string& config,
       if (e.name.rfind(prefix, 0) != 0) continue;
       if (prefix.empty() && e.name.rfind("branch.", 0) == 0) continue;
       in_file.push_back({e.name.substr(prefix.size()), e.shape});
+      stored_dtypes.insert(e.dtype);
     }
     return CompareStateDict(path + (prefix.empty() ? "" : " [" + prefix + "*]"),
                             specs, in_file);
@@ -344,10 +379,30 @@ std::string CheckWeights(const std::string& config,
     bpath = weights;
     prefix = "branch.";
   }
+  int64_t params = NumElements(BackboneParamSpecs(cfg));
   if (!bpath.empty()) {
     LoadReport b = compare(bpath, BranchParamSpecs(cfg), prefix);
     *ok = *ok && b.ok();
     os << "\nencoder " << b.BriefReport();
+    params += NumElements(BranchParamSpecs(cfg));
+  }
+  // What loading would take: stored dtypes, and the weights' size in the
+  // compute dtype on the device (a checkpoint in that dtype is not converted).
+  os << "\nstored as";
+  for (const auto& d : stored_dtypes) os << " " << d;
+  os << "; " << params << " parameters = "
+     << static_cast<double>(params) * DtypeBytes(runtime.dtype) / 1e9
+     << " GB in " << DtypeName(runtime.dtype) << " on "
+     << runtime.device.ToString();
+  if (runtime.offload_backbone && runtime.device.is_cuda()) {
+    int64_t per_block = 0;
+    for (const auto& spec : BackboneParamSpecs(cfg)) {
+      if (spec.name.rfind("transformer_blocks.0.", 0) == 0)
+        per_block += NumElements(spec.shape);
+    }
+    os << " (offload: "
+       << static_cast<double>(per_block) * DtypeBytes(runtime.dtype) / 1e9
+       << " GB per block on the device at a time)";
   }
   return os.str();
 }

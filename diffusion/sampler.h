@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "diffusion/runtime.h"
+
 namespace geodrive {
 namespace diffusion {
 
@@ -35,6 +37,12 @@ struct SampleOptions {
   bool progress = true;  // progress bar on stderr
   int64_t attention_chunk_mb = 256;
   int64_t ff_token_chunk = 4096;
+  // Attention kernel (ForwardOptions::attention).
+  AttentionBackend attention = AttentionBackend::kAuto;
+  // Device, dtypes and offload. The noise is drawn on the CPU (the same
+  // numbers on every device), the scheduler runs in float32 on the device and
+  // the output latents are float32.
+  RuntimeOptions runtime;
   void Check() const;
 };
 
@@ -43,6 +51,10 @@ struct SampleResult {
   int steps = 0;
   bool guidance_used = false;
   double seconds = 0;
+  // Device and dtypes the sampling ran in (RuntimeOptions::BriefReport).
+  std::string runtime;
+  // Bytes of DiT weights (backbone + encoder) in the compute dtype.
+  int64_t weight_bytes = 0;
   std::string BriefReport() const;
 };
 
@@ -66,11 +78,13 @@ std::string InitWeightsFile(const InitWeightsOptions& options);
 
 // Checks names and shapes of a backbone (and optional encoder) checkpoint
 // against a preset without reading tensor data; returns the loader report text
-// and sets *ok.
+// (with the checkpoint's stored dtypes and the memory its weights take in
+// `runtime.dtype` on `runtime.device`) and sets *ok.
 std::string CheckWeights(const std::string& config,
                          const std::string& weights,
                          const std::string& branch_weights,
-                         bool* ok);
+                         bool* ok,
+                         const RuntimeOptions& runtime = {});
 
 // Parses the OMP_NUM_THREADS environment variable (0 when unset/invalid) and
 // sets LibTorch's intra-op thread count to `threads` (> 0) or to that value.

@@ -19,6 +19,7 @@
 
 #include "diffusion/config.h"
 #include "diffusion/pairs_loader.h"
+#include "diffusion/runtime_torch.h"
 #include "diffusion/safetensors.h"
 #include "diffusion/schedule.h"
 #include "diffusion/vae.h"
@@ -143,6 +144,113 @@ struct BranchCheckpointFunction
   }
 };
 
+// Gradient checkpointing of one backbone block (ForwardOptions::
+// block_forward): the forward keeps only the block's inputs; backward
+// recomputes the block with grad enabled and differentiates it. The backbone's
+// weights are frozen, so the gradients are those of the activations.
+struct BlockCheckpointSpec {
+  DiTConfig config;
+  const Weights* weights;  // the block's weights (outlive the step)
+  Weights owned;           // ... or a copy made by the offload path
+  std::string prefix;
+  RotaryTables rope;
+  ForwardOptions options;  // without block_forward
+};
+
+struct BlockCheckpointFunction
+    : public torch::autograd::Function<BlockCheckpointFunction> {
+  static torch::autograd::variable_list forward(
+      torch::autograd::AutogradContext* ctx,
+      const BlockCheckpointSpec* spec,
+      const at::Tensor& video,
+      const at::Tensor& text,
+      const at::Tensor& temb) {
+    ctx->saved_data["spec"] = reinterpret_cast<int64_t>(spec);
+    ctx->save_for_backward({video, text, temb});
+    at::Tensor v = video, t = text;
+    BlockForward(spec->config, *spec->weights, spec->prefix, temb, spec->rope,
+                 spec->options, &v, &t);
+    return {v, t};
+  }
+
+  static torch::autograd::variable_list backward(
+      torch::autograd::AutogradContext* ctx,
+      torch::autograd::variable_list grad_outputs) {
+    const auto* spec = reinterpret_cast<const BlockCheckpointSpec*>(
+        ctx->saved_data["spec"].toInt());
+    const torch::autograd::variable_list saved = ctx->get_saved_variables();
+    std::vector<at::Tensor> in, wrt;
+    std::vector<size_t> wrt_index;
+    for (size_t i = 0; i < saved.size(); ++i) {
+      at::Tensor leaf = saved[i].detach();
+      if (saved[i].requires_grad()) {
+        leaf.requires_grad_(true);
+        wrt.push_back(leaf);
+        wrt_index.push_back(i);
+      }
+      in.push_back(leaf);
+    }
+    at::Tensor v = in[0], t = in[1];
+    {
+      at::AutoGradMode enable(true);
+      BlockForward(spec->config, *spec->weights, spec->prefix, in[2],
+                   spec->rope, spec->options, &v, &t);
+    }
+    std::vector<at::Tensor> outs, grads;
+    const at::Tensor produced[2] = {v, t};
+    for (size_t k = 0; k < 2; ++k) {
+      if (!grad_outputs[k].defined() || !produced[k].requires_grad()) continue;
+      outs.push_back(produced[k]);
+      grads.push_back(grad_outputs[k]);
+    }
+    torch::autograd::variable_list result(4);  // spec, video, text, temb
+    if (wrt.empty() || outs.empty()) return result;
+    const torch::autograd::variable_list g =
+        torch::autograd::grad(outs, wrt, grads, /*retain_graph=*/false,
+                              /*create_graph=*/false, /*allow_unused=*/true);
+    for (size_t j = 0; j < wrt_index.size(); ++j)
+      result[1 + wrt_index[j]] = g[j];
+    return result;
+  }
+};
+
+}  // namespace
+
+void CheckpointedBlockForward(const DiTConfig& config,
+                              const Weights& w,
+                              const std::string& prefix,
+                              const at::Tensor& temb,
+                              const RotaryTables& rope,
+                              const ForwardOptions& options,
+                              at::Tensor* video,
+                              at::Tensor* text) {
+  if (!at::GradMode::is_enabled() ||
+      !(video->requires_grad() || text->requires_grad() ||
+        temb.requires_grad())) {
+    BlockForward(config, w, prefix, temb, rope, options, video, text);
+    return;
+  }
+  auto spec = std::make_shared<BlockCheckpointSpec>();
+  spec->config = config;
+  spec->owned = w.Subset(prefix);  // shares the tensors; outlives the step
+  spec->weights = &spec->owned;
+  spec->prefix = prefix;
+  spec->rope = rope;
+  spec->options = options;
+  spec->options.block_forward = nullptr;
+  torch::autograd::variable_list out =
+      BlockCheckpointFunction::apply(spec.get(), *video, *text, temb);
+  // The autograd node holds a raw pointer: tie the spec's lifetime to the
+  // outputs' graph with a no-op hook that owns it.
+  for (auto& o : out) {
+    if (o.requires_grad()) o.register_hook([spec](at::Tensor g) { return g; });
+  }
+  *video = out[0];
+  *text = out[1];
+}
+
+namespace {
+
 std::string FormatDouble(double v) {
   if (!std::isfinite(v)) return "";
   char buf[64];
@@ -241,8 +349,8 @@ std::string TrainResult::BriefReport() const {
   std::ostringstream os;
   os << "trained steps " << start_step << " -> " << end_step << " in "
      << seconds << " s";
-  if (first_val_loss >= 0) {
-    os << "; validation loss " << first_val_loss << " -> " << last_val_loss;
+  if (first_val_loss && last_val_loss) {
+    os << "; validation loss " << *first_val_loss << " -> " << *last_val_loss;
   }
   if (!last_checkpoint.empty()) os << "; checkpoint " << last_checkpoint;
   return os.str();
@@ -281,11 +389,18 @@ struct Trainer::Impl {
   }
 
   at::Tensor EncodeVideo(const at::Tensor& video) const {
-    // [B, 3, F, H, W] -> scaled latents [B, F', C, h, w].
+    // [B, 3, F, H, W] -> scaled latents [B, F', C, h, w], float32 on the CPU
+    // (the VAE runs on the device in its dtype).
     at::NoGradGuard no_grad;
-    return (VaeEncode(vae_cfg, vae, video) * vae_cfg.scaling_factor)
+    return (VaeEncode(vae_cfg, vae, video).to(at::kFloat).cpu() *
+            vae_cfg.scaling_factor)
         .permute({0, 2, 1, 3, 4})
         .contiguous();
+  }
+
+  // Float32 on the compute device (the step's data, drawn on the CPU).
+  at::Tensor OnDevice(const at::Tensor& t) const {
+    return t.to(ComputeOptions(o.runtime.device, ComputeDtype::kFloat32));
   }
 
   PairLatents Encode(const PairSample& s) const {
@@ -320,7 +435,7 @@ struct Trainer::Impl {
 
   at::Tensor AlphaBar(const at::Tensor& t) const {
     at::Tensor table = at::tensor(alphas_cumprod, at::kDouble);
-    return table.index_select(0, t).to(at::kFloat);
+    return OnDevice(table.index_select(0, t.cpu()));
   }
 
   // v-prediction MSE of the model at (x0, eps, t); latents [B, F', C, h, w].
@@ -330,20 +445,31 @@ struct Trainer::Impl {
                   const at::Tensor& eps,
                   const at::Tensor& t,
                   bool checkpointing) const {
+    // Inputs and the loss in float32 on the device; the networks in their
+    // dtypes. The encoder's float32 master weights are cast to the compute
+    // dtype differentiably (shared, not copied, in float32).
     const int64_t B = x0.size(0);
     const at::Tensor ab = AlphaBar(t).view({B, 1, 1, 1, 1});
     const at::Tensor sa = ab.sqrt(), sb = (1 - ab).sqrt();
-    const at::Tensor xt = sa * x0 + sb * eps;
-    const at::Tensor v = sa * eps - sb * x0;
-    const at::Tensor tf = t.to(at::kFloat);
-    const at::Tensor txt = text.expand({B, text.size(1), text.size(2)});
+    const at::Tensor x0d = OnDevice(x0), epsd = OnDevice(eps);
+    const at::Tensor xt = sa * x0d + sb * epsd;
+    const at::Tensor v = sa * epsd - sb * x0d;
+    const at::Tensor tf = OnDevice(t);
+    const at::Tensor td = OnDevice(text);
+    const at::Tensor txt = td.expand({B, td.size(1), td.size(2)});
+    const at::Tensor condd = OnDevice(cond);
+    const Weights enc =
+        branch.To(ComputeOptions(o.runtime.device, o.runtime.dtype));
+    ForwardOptions backbone_fwd = fwd;
+    if (checkpointing) backbone_fwd.block_forward = CheckpointedBlockForward;
     const std::vector<at::Tensor> res =
         checkpointing
-            ? CheckpointedBranchForward(cfg, branch, xt, cond, txt, tf, fwd)
-            : BranchForward(cfg, branch, xt, cond, txt, tf, fwd);
-    const at::Tensor pred = BackboneForward(
-        cfg, backbone, at::cat({xt, image}, 2), txt, tf, res, fwd);
-    return (pred - v).pow(2).mean();
+            ? CheckpointedBranchForward(cfg, enc, xt, condd, txt, tf, fwd)
+            : BranchForward(cfg, enc, xt, condd, txt, tf, fwd);
+    const at::Tensor pred =
+        BackboneForward(cfg, backbone, at::cat({xt, OnDevice(image)}, 2), txt,
+                        tf, res, backbone_fwd);
+    return (pred.to(at::kFloat) - v).pow(2).mean();
   }
 
   // Image latent padded with zeros to F' frames: [B, F', C, h, w].
@@ -361,7 +487,7 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
   m.o.Check();
   m.cfg = ConfigPreset(m.o.config);
   m.cfg.Check();
-  m.vae_cfg = VaePreset(IsTinyPreset(m.cfg.name) ? "tiny" : "cogvideox-5b-i2v");
+  m.vae_cfg = VaePreset(VaePresetNameForConfig(m.cfg.name));
   GEODRIVE_CHECK_INPUT(m.vae_cfg.latent_channels == m.cfg.out_channels,
                        "config '", m.cfg.name, "': VAE '", m.vae_cfg.name,
                        "' has ", m.vae_cfg.latent_channels,
@@ -372,6 +498,15 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
                        "' does not take [latent, image] channel pairs");
   m.fwd.attention_chunk_bytes = m.o.attention_chunk_mb << 20;
   m.fwd.ff_token_chunk = m.o.ff_token_chunk;
+  m.fwd.attention = m.o.attention;
+  m.o.runtime.Check();
+  // Frozen networks in their compute dtypes on the device; the trained
+  // encoder's master weights in float32 there.
+  WeightPlacement backbone_place, vae_place, branch_place;
+  backbone_place.device = vae_place.device = branch_place.device =
+      m.o.runtime.device;
+  backbone_place.dtype = m.o.runtime.dtype;
+  vae_place.dtype = m.o.runtime.vae_dtype;
   m.pixel_frames = static_cast<int>(m.vae_cfg.PixelFrames(m.cfg.latent_frames));
   m.pixel_height = m.cfg.latent_height * m.vae_cfg.spatial_compression;
   m.pixel_width = m.cfg.latent_width * m.vae_cfg.spatial_compression;
@@ -385,15 +520,16 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
                        "'");
   LoadReport report;
   if (m.o.weights.empty()) {
-    m.backbone = InitWeights(BackboneParamSpecs(m.cfg), m.o.seed);
-  } else {
     m.backbone =
-        LoadWeights(m.o.weights, BackboneParamSpecs(m.cfg), "", true, &report);
+        InitWeights(BackboneParamSpecs(m.cfg), m.o.seed, backbone_place);
+  } else {
+    m.backbone = LoadWeights(m.o.weights, BackboneParamSpecs(m.cfg), "", true,
+                             &report, backbone_place);
   }
   m.vae = m.o.vae_weights.empty()
-              ? InitWeights(VaeParamSpecs(m.vae_cfg), m.o.seed + 2)
+              ? InitWeights(VaeParamSpecs(m.vae_cfg), m.o.seed + 2, vae_place)
               : LoadWeights(m.o.vae_weights, VaeParamSpecs(m.vae_cfg), "", true,
-                            &report);
+                            &report, vae_place);
   std::string branch_path, branch_prefix;
   if (!m.o.resume.empty()) {
     branch_path = m.o.resume + "/" + kBranchFile;
@@ -405,10 +541,12 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
     branch_prefix = "branch.";
   }
   if (branch_path.empty()) {
-    m.branch = InitBranchFromBackbone(m.cfg, m.backbone, m.o.seed + 1);
+    m.branch =
+        InitBranchFromBackbone(m.cfg, m.backbone, m.o.seed + 1)
+            .To(ComputeOptions(m.o.runtime.device, ComputeDtype::kFloat32));
   } else {
     m.branch = LoadWeights(branch_path, BranchParamSpecs(m.cfg), branch_prefix,
-                           false, &report);
+                           false, &report, branch_place);
     CheckBranchLoadReport(report);
   }
   // Frozen: backbone and VAE. Trained: the encoder's used tensors.
@@ -470,8 +608,8 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
       GEODRIVE_CHECK_INPUT(
           st.Has("exp_avg_sq." + name) && st.Has("adam_step." + name), path,
           ": incomplete optimizer state for '", name, "'");
-      at::Tensor ea = st.Load("exp_avg." + name).to(at::kFloat);
-      at::Tensor eas = st.Load("exp_avg_sq." + name).to(at::kFloat);
+      at::Tensor ea = m.OnDevice(st.Load("exp_avg." + name));
+      at::Tensor eas = m.OnDevice(st.Load("exp_avg_sq." + name));
       GEODRIVE_CHECK_INPUT(ea.sizes() == m.params[i].sizes() &&
                                eas.sizes() == m.params[i].sizes(),
                            path, ": optimizer state of '", name,
@@ -642,7 +780,7 @@ const char* kCsvHeader = "step,loss,val_loss,lr,grad_norm,seconds";
 std::string CsvLine(const TrainLogRow& r) {
   std::ostringstream os;
   os << r.step << "," << FormatDouble(r.loss) << ","
-     << (r.val_loss >= 0 ? FormatDouble(r.val_loss) : "") << ","
+     << (r.val_loss ? FormatDouble(*r.val_loss) : "") << ","
      << FormatDouble(r.lr) << "," << FormatDouble(r.grad_norm) << ","
      << FormatDouble(r.seconds);
   return os.str();
@@ -668,11 +806,15 @@ std::vector<TrainLogRow> ReadCsvRows(const std::string& path,
     auto num = [](const std::string& s, double dflt) {
       return s.empty() ? dflt : std::strtod(s.c_str(), nullptr);
     };
+    auto optional_num = [](const std::string& s) -> std::optional<double> {
+      if (s.empty()) return std::nullopt;
+      return std::strtod(s.c_str(), nullptr);
+    };
     TrainLogRow r;
     r.step = std::strtoll(f[0].c_str(), nullptr, 10);
     if (r.step > max_step) continue;
     r.loss = num(f[1], std::nan(""));
-    r.val_loss = num(f[2], -1);
+    r.val_loss = optional_num(f[2]);
     r.lr = num(f[3], 0);
     r.grad_norm = num(f[4], 0);
     r.seconds = num(f[5], 0);
@@ -703,7 +845,7 @@ void WriteLogs(const std::string& out,
     nlohmann::json e;
     e["step"] = r.step;
     e["loss"] = std::isfinite(r.loss) ? nlohmann::json(r.loss) : nullptr;
-    e["val_loss"] = r.val_loss >= 0 ? nlohmann::json(r.val_loss) : nullptr;
+    e["val_loss"] = r.val_loss ? nlohmann::json(*r.val_loss) : nullptr;
     e["lr"] = r.lr;
     e["grad_norm"] = r.grad_norm;
     e["seconds"] = r.seconds;
@@ -713,10 +855,14 @@ void WriteLogs(const std::string& out,
   WriteFileAtomic(out + "/train_log.json", j.dump(1) + "\n");
 }
 
+// The progress line. `has_validation`: a validation set was given (then "val"
+// shows the latest measured loss, "n/a" before the first); without one the
+// line has no "val" field.
 void DrawTrainProgress(const TrainLogRow& r,
                        int64_t start,
                        int64_t total,
-                       double last_val) {
+                       bool has_validation,
+                       const std::optional<double>& last_val) {
   const int width = 24;
   const int filled =
       total > 0 ? static_cast<int>(r.step * width / total) : width;
@@ -724,11 +870,17 @@ void DrawTrainProgress(const TrainLogRow& r,
   bar += std::string(static_cast<size_t>(width - filled), '.');
   const int64_t done = r.step - start;
   const double per = done > 0 ? r.seconds / done : 0.0;
+  char val[32] = "";
+  if (has_validation && last_val) {
+    std::snprintf(val, sizeof(val), " val %.4f", *last_val);
+  } else if (has_validation) {
+    std::snprintf(val, sizeof(val), " val n/a");
+  }
   std::fprintf(stderr,
-               "\rtrain [%s] %lld/%lld loss %.4f val %.4f lr %.2e %.3f s/step "
+               "\rtrain [%s] %lld/%lld loss %.4f%s lr %.2e %.3f s/step "
                "eta %.0f s   ",
                bar.c_str(), static_cast<long long>(r.step),
-               static_cast<long long>(total), r.loss, last_val, r.lr, per,
+               static_cast<long long>(total), r.loss, val, r.lr, per,
                per * static_cast<double>(total - r.step));
   if (r.step == total) std::fprintf(stderr, "\n");
   std::fflush(stderr);
@@ -753,7 +905,7 @@ TrainResult Train(const TrainOptions& o) {
   std::vector<TrainLogRow> rows;
   if (!o.resume.empty())
     rows = ReadCsvRows(o.out + "/train_log.csv", trainer.step());
-  double last_val = -1;
+  std::optional<double> last_val;
   if (trainer.has_validation() && o.resume.empty()) {
     TrainLogRow r;
     r.step = trainer.step();
@@ -765,9 +917,9 @@ TrainResult Train(const TrainOptions& o) {
     rows.push_back(r);
   } else if (trainer.has_validation()) {
     for (const auto& r : rows) {
-      if (r.val_loss >= 0 && result.first_val_loss < 0)
+      if (r.val_loss && !result.first_val_loss)
         result.first_val_loss = r.val_loss;
-      if (r.val_loss >= 0) last_val = r.val_loss;
+      if (r.val_loss) last_val = r.val_loss;
     }
   }
   WriteLogs(o.out, o, rows);
@@ -782,7 +934,7 @@ TrainResult Train(const TrainOptions& o) {
     const bool last = r.step == o.steps;
     if (trainer.has_validation() && (r.step % o.val_every == 0 || last)) {
       r.val_loss = last_val = trainer.Validate();
-      if (result.first_val_loss < 0) result.first_val_loss = r.val_loss;
+      if (!result.first_val_loss) result.first_val_loss = r.val_loss;
     }
     r.seconds = elapsed();
     rows.push_back(r);
@@ -792,8 +944,11 @@ TrainResult Train(const TrainOptions& o) {
       result.last_checkpoint = o.out + "/checkpoint-" + std::to_string(r.step);
       trainer.SaveCheckpoint(result.last_checkpoint);
     }
-    if (ckpt || r.val_loss >= 0 || r.step % 50 == 0) WriteLogs(o.out, o, rows);
-    if (o.progress) DrawTrainProgress(r, result.start_step, o.steps, last_val);
+    if (ckpt || r.val_loss || r.step % 50 == 0) WriteLogs(o.out, o, rows);
+    if (o.progress) {
+      DrawTrainProgress(r, result.start_step, o.steps, trainer.has_validation(),
+                        last_val);
+    }
   }
   WriteLogs(o.out, o, rows);
   result.end_step = trainer.step();

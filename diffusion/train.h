@@ -10,10 +10,12 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "diffusion/model.h"
+#include "diffusion/runtime.h"
 
 namespace CLI {
 class App;
@@ -49,7 +51,9 @@ struct TrainOptions {
   int64_t val_every = 100;     // validation every N steps (and at 0 and end)
   int val_timesteps = 8;       // fixed timesteps per validation pair
   int64_t checkpoint_every = 500;   // 0 = only the final checkpoint
-  bool grad_checkpointing = false;  // recompute the encoder in backward
+  // Recompute the encoder and every backbone block in backward (each block
+  // keeps only its inputs for backward).
+  bool grad_checkpointing = false;
   // VAE latents of each pair computed once and kept in memory (exact: the VAE
   // is frozen and the latent mean is used). false = decode and encode the
   // pairs every step, streaming through the prefetch queue.
@@ -64,14 +68,21 @@ struct TrainOptions {
   bool progress = true;  // progress line on stderr
   int64_t attention_chunk_mb = 256;
   int64_t ff_token_chunk = 4096;
+  // Attention kernel (ForwardOptions::attention).
+  AttentionBackend attention = AttentionBackend::kAuto;
+  // Device and dtypes: the frozen backbone in runtime.dtype, the VAE in
+  // runtime.vae_dtype, the trained encoder's master weights, its optimiser
+  // state and the loss in float32 (the encoder computes in runtime.dtype
+  // through a differentiable cast, as mixed-precision training does).
+  RuntimeOptions runtime;
   void Check() const;
 };
 
 // One row of the loss log.
 struct TrainLogRow {
-  int64_t step = 0;      // optimiser steps done
-  double loss = 0;       // train loss of this step (NaN for step 0)
-  double val_loss = -1;  // < 0: not measured at this step
+  int64_t step = 0;                // optimiser steps done
+  double loss = 0;                 // train loss of this step (NaN for step 0)
+  std::optional<double> val_loss;  // empty: not measured at this step
   double lr = 0;
   double grad_norm = 0;  // before clipping
   double seconds = 0;    // since the start of this run
@@ -79,7 +90,9 @@ struct TrainLogRow {
 
 struct TrainResult {
   int64_t start_step = 0, end_step = 0;
-  double first_val_loss = -1, last_val_loss = -1;  // -1 without validation
+  // Validation losses of the run (first and last measured); empty without
+  // --val-pairs.
+  std::optional<double> first_val_loss, last_val_loss;
   std::vector<TrainLogRow> log;
   std::string last_checkpoint;
   double seconds = 0;
@@ -146,6 +159,18 @@ std::vector<at::Tensor> CheckpointedBranchForward(
     const at::Tensor& text,
     const at::Tensor& timesteps,
     const ForwardOptions& options = {});
+
+// BlockForward with gradient checkpointing (ForwardOptions::block_forward):
+// keeps only the block's inputs and recomputes it in backward; a plain
+// BlockForward when no input needs a gradient.
+void CheckpointedBlockForward(const DiTConfig& config,
+                              const Weights& w,
+                              const std::string& prefix,
+                              const at::Tensor& temb,
+                              const RotaryTables& rope,
+                              const ForwardOptions& options,
+                              at::Tensor* video,
+                              at::Tensor* text);
 
 }  // namespace diffusion
 }  // namespace geodrive

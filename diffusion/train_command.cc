@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "apps/cli/cli.h"
+#include "diffusion/runtime_cli.h"
 #include "diffusion/train.h"
 
 namespace geodrive {
@@ -15,6 +16,7 @@ CommandRunner SetupTrain(CLI::App& sub) {
   // The options live as long as the process (the callback runs after parse).
   static TrainOptions o;
   static bool no_progress = false, no_cache = false, no_image_noise = false;
+  static RuntimeArgs runtime;
   CLI::App* cmd = &sub;
   cmd->add_option("--pairs", o.pairs, "train manifest.jsonl (build-dataset)")
       ->required();
@@ -63,8 +65,8 @@ CommandRunner SetupTrain(CLI::App& sub) {
                   "checkpoint every N steps (0: only at the end)")
       ->capture_default_str();
   cmd->add_flag("--grad-checkpointing", o.grad_checkpointing,
-                "recompute the encoder in backward instead of keeping its "
-                "activations");
+                "recompute the encoder and each backbone block in backward "
+                "instead of keeping their activations");
   cmd->add_flag("--no-latent-cache", no_cache,
                 "decode and VAE-encode the pairs every step through the "
                 "prefetch queue instead of caching latents");
@@ -76,7 +78,10 @@ CommandRunner SetupTrain(CLI::App& sub) {
                   "max attention-score memory per chunk (MB)")
       ->capture_default_str();
   cmd->add_flag("--no-progress", no_progress, "no progress line");
+  AddRuntimeOptions(*cmd, &runtime, kRuntimeVae | kRuntimeAttention);
   return [] {
+    o.runtime = runtime.Parse();
+    o.attention = runtime.Attention();
     o.progress = !no_progress;
     o.cache_latents = !no_cache;
     o.image_noise = !no_image_noise;

@@ -225,6 +225,16 @@ std::vector<std::pair<int64_t, int64_t>> Batches(bool batching,
 
 void VaeOptions::Check() const {}
 
+namespace {
+
+// Device and dtype of the VAE's weights (all alike).
+at::TensorOptions WeightOptions(const Weights& w) {
+  TORCH_CHECK(!w.order.empty(), "VAE weights are empty");
+  return w.Get(w.order.front()).options();
+}
+
+}  // namespace
+
 Weights VaeInitWeights(const VaeConfig& config, uint64_t seed) {
   Weights w = InitWeights(VaeParamSpecs(config), seed);
   for (const std::string& name : w.order) {
@@ -262,7 +272,8 @@ at::Tensor VaeEncodeMoments(const VaeConfig& config,
                            video.size(3) > 0 && video.size(4) > 0,
                        "VAE encode: frame size ", video.size(3), "x",
                        video.size(4), " is not a multiple of ", sc);
-  const at::Tensor x = video.to(at::kFloat);
+  // Computed on the device and in the dtype of the weights.
+  const at::Tensor x = video.to(WeightOptions(w));
   ConvCache cache;
   std::vector<at::Tensor> parts;
   for (const auto& [s, e] :
@@ -293,7 +304,7 @@ at::Tensor VaeDecode(const VaeConfig& config,
           latents.size(2) >= 1 && latents.size(3) >= 1 && latents.size(4) >= 1,
       "VAE decode: latents must be [B, ", config.latent_channels,
       ", F, h, w], got ", latents.sizes());
-  const at::Tensor z = latents.to(at::kFloat);
+  const at::Tensor z = latents.to(WeightOptions(w));
   ConvCache cache;
   std::vector<at::Tensor> parts;
   for (const auto& [s, e] :
