@@ -10,7 +10,7 @@
 //      memory;
 //   4. one full sampling step of the 5B shape with random weights (42
 //      backbone + 2 encoder blocks, classifier-free guidance batch 2): time,
-//      peak memory;
+//      peak memory; on CUDA also with the blocks offloaded to host memory;
 //   5. a 5B-shape VAE decode of 13 latent frames (49 x 480 x 720): time, peak
 //      memory.
 // --shape small runs 3-5 on scaled-down shapes (a CPU can do them in
@@ -348,7 +348,7 @@ void Step(const CheckOptions& o, const PeakMemory& peak) {
   const at::TensorOptions f32 =
       ComputeOptions(o.device, ComputeDtype::kFloat32);
   auto start = std::chrono::steady_clock::now();
-  const Weights backbone = RandomWeightsOn(BackboneParamSpecs(c), opts);
+  Weights backbone = RandomWeightsOn(BackboneParamSpecs(c), opts);
   const Weights branch = RandomWeightsOn(BranchParamSpecs(c), opts);
   Sync(backbone.Get("proj_out.weight"));
   std::printf("step     %s: random weights on %s in %.1f s (%.2f GB)\n",
@@ -381,6 +381,31 @@ void Step(const CheckOptions& o, const PeakMemory& peak) {
       "%lld tokens: %.3f s per sampling step, %s\n",
       c.name.c_str(), DtypeName(o.dtype), c.num_layers, c.branch_layers,
       static_cast<long long>(c.seq_len()), s, peak.Report().c_str());
+  if (!o.device.is_cuda()) return;
+  // The same step with the backbone's blocks in pinned host memory
+  // (--offload-backbone): each block is copied to the GPU for its forward.
+  Weights offloaded;
+  for (const auto& name : backbone.order) {
+    const at::Tensor& t = backbone.Get(name);
+    offloaded.Set(name, name.rfind("transformer_blocks.", 0) == 0
+                            ? t.cpu().pin_memory()
+                            : t);
+  }
+  backbone = Weights();  // the GPU copies of the blocks are freed
+  ForwardOptions off = fwd;
+  off.offload_blocks = true;
+  peak.Reset();
+  const double so = TimeIt(o.repeats, [&] {
+    const at::Tensor x_in = at::cat({x, x}, 0);
+    const at::Tensor tt = at::full({2}, 999.0, f32);
+    const auto res = BranchForward(c, branch, x_in, cond, text, tt, off);
+    return BackboneForward(c, offloaded, at::cat({x_in, image}, 2), text, tt,
+                           res, off);
+  });
+  std::printf(
+      "step     %s %s with --offload-backbone (blocks in pinned host "
+      "memory): %.3f s per sampling step, %s\n",
+      c.name.c_str(), DtypeName(o.dtype), so, peak.Report().c_str());
 }
 
 void Vae(const CheckOptions& o, const PeakMemory& peak) {
