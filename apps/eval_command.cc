@@ -10,6 +10,7 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "apps/cli/cli.h"
 #include "eval/deep_metrics.h"
@@ -17,6 +18,7 @@
 #include "eval/image_metrics.h"
 #include "eval/report.h"
 #include "eval/trajectory_metrics.h"
+#include "eval/video_matching.h"
 #include "geometry/trajectory_io.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
@@ -31,6 +33,8 @@ struct EvalArgs {
   std::string align = "none", pred_traj, gt_traj, traj_format = "tum";
   std::string pred_name = "pred.mp4", gt_name = "gt.mp4", units,
               method = "ours";
+  // Which ground-truth videos to evaluate: all or predicted.
+  std::string subset = "all";
   bool x100 = false;
   int threads = 0;
   // Deep metrics: TorchScript models and cached reference statistics.
@@ -149,6 +153,7 @@ void EvaluateTrajectories(const EvalArgs& args, EvalReport* report) {
 void PrintEvalSummary(const EvalReport& report,
                       const std::function<bool(const char*)>& wants,
                       bool lpips) {
+  if (report.subset) std::cout << report.subset->BriefReport() << "\n";
   for (const char* m : {"psnr", "ssim", "psnr_y", "ssim_y"}) {
     if (!wants(m)) continue;
     const MeanStd s = report.Aggregate(m);
@@ -176,6 +181,7 @@ void PrintEvalSummary(const EvalReport& report,
 
 int RunEval(const EvalArgs& args) {
   const std::vector<std::string> metrics = SplitMetrics(args.metrics);
+  const EvalSubset subset = ParseEvalSubset(args.subset);
   auto wants = [&](const char* m) {
     return std::find(metrics.begin(), metrics.end(), m) != metrics.end();
   };
@@ -241,8 +247,11 @@ int RunEval(const EvalArgs& args) {
                          "fid/fvd without cached --fid-stats/--fvd-stats");
     std::vector<VideoPairSource> pairs;
     if (need_gt) {
-      pairs = MatchVideos(ListVideos(args.pred, args.pred_name),
-                          ListVideos(args.gt, args.gt_name));
+      EvalVideoMatch match =
+          MatchEvalVideos(ListVideos(args.pred, args.pred_name),
+                          ListVideos(args.gt, args.gt_name), subset);
+      pairs = std::move(match.pairs);
+      report.subset = match.summary;
     } else {
       for (const VideoSource& v : ListVideos(args.pred, args.pred_name))
         pairs.push_back({v.id, v.path, ""});
@@ -350,6 +359,13 @@ CommandRunner SetupEval(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--gt-name", args->gt_name,
                  "Member of a pairs clip folder used as ground truth")
+      ->capture_default_str();
+  app.add_option("--subset", args->subset,
+                 "Ground-truth videos to evaluate: all (each needs a "
+                 "prediction) or predicted (only those with a prediction, "
+                 "e.g. after generate --limit N; the report counts and lists "
+                 "the others)")
+      ->check(CLI::IsMember({"all", "predicted"}))
       ->capture_default_str();
   app.add_option("--method", args->method, "Row label of the Markdown table")
       ->capture_default_str();

@@ -254,6 +254,13 @@ void WriteReportJson(const EvalReport& r,
                        {"per_frame", t.per_frame}};
   }
   j["summary"] = summary;
+  if (r.subset) {
+    j["subset"] = {{"mode", ToString(r.subset->subset)},
+                   {"evaluated", r.subset->evaluated},
+                   {"ground_truth", r.subset->ground_truth},
+                   {"without_prediction", r.subset->without_prediction},
+                   {"description", r.subset->BriefReport()}};
+  }
   nlohmann::json videos = nlohmann::json::array();
   for (const VideoEvalRecord& v : r.videos) {
     nlohmann::json jv = {{"id", v.id},
@@ -321,8 +328,9 @@ void WriteReportMarkdown(const EvalReport& r, const std::string& md_path) {
      << " | "
      << (r.trajectory && Has(r, "fde") ? Fixed(r.trajectory->fde, 2) : "-")
      << " |\n\n";
-  md << r.videos.size() << " videos. PSNR: data range "
-     << r.frame_options.psnr_options.data_range
+  md << r.videos.size() << " videos";
+  if (r.subset) md << "; " << r.subset->BriefReport();
+  md << ". PSNR: data range " << r.frame_options.psnr_options.data_range
      << ", mean over frames then videos. SSIM: "
      << "11×11 Gaussian σ 1.5, population covariance (skimage "
         "gaussian_weights=True). ";

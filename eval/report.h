@@ -11,6 +11,7 @@
 
 #include "eval/image_metrics.h"
 #include "eval/trajectory_metrics.h"
+#include "eval/video_matching.h"
 
 namespace geodrive {
 
@@ -50,6 +51,9 @@ struct EvalReport {
   std::string method = "ours";       // row label of the Markdown table
   FrameMetricsOptions frame_options;
   std::vector<VideoEvalRecord> videos;
+  // Which ground-truth videos were evaluated (absent when no ground truth was
+  // read, e.g. FID/FVD against cached statistics).
+  std::optional<EvalSubsetSummary> subset;
   std::optional<TrajectoryErrors> trajectory;  // already scaled when x100
   bool x100 = false;
   std::optional<FrechetReport> fid, fvd;
