@@ -158,13 +158,29 @@ VaeConfig VaePreset(const std::string& name) {
     c.spatial_compression = 8;
     return c;
   }
-  ThrowInputError(name,
-                  "unknown VAE preset (expected one of: tiny, "
-                  "cogvideox-5b-i2v)");
+  const std::vector<std::string> configs = ConfigPresetNames();
+  if (std::find(configs.begin(), configs.end(), name) != configs.end()) {
+    return VaePreset(VaePresetNameForConfig(name));
+  }
+  std::string known;
+  for (const std::string& n : VaePresetNames()) known += " " + n;
+  std::string known_configs;
+  for (const std::string& n : configs) known_configs += " " + n;
+  ThrowInputError(name, "unknown VAE preset (VAE presets:", known,
+                  "; DiT config presets:", known_configs, ")");
 }
 
 std::vector<std::string> VaePresetNames() {
   return {"tiny", "cogvideox-5b-i2v"};
+}
+
+std::string VaePresetNameForConfig(const std::string& config) {
+  // Every tiny DiT preset has 4 latent channels and 8x spatial / 4x temporal
+  // compression: they share the tiny VAE.
+  const DiTConfig c = ConfigPreset(config);  // InputError naming --config
+  if (c.name == "cogvideox-5b-i2v") return "cogvideox-5b-i2v";
+  if (c.name.rfind("tiny", 0) == 0) return "tiny";
+  ThrowInputError("--config", "preset '", config, "' has no VAE preset");
 }
 
 std::vector<ParamSpec> VaeParamSpecs(const VaeConfig& c) {

@@ -49,9 +49,18 @@ std::vector<std::pair<int64_t, int64_t>> VaeFrameBatches(int64_t frames,
                                                          int64_t batch);
 
 // Presets: "tiny" (4 latent channels = tiny DiTConfig out_channels; CPU tests)
-// and "cogvideox-5b-i2v" (THUDM/CogVideoX-5b-I2V vae/config.json).
+// and "cogvideox-5b-i2v" (THUDM/CogVideoX-5b-I2V vae/config.json). A DiT
+// config preset name (ConfigPresetNames, e.g. "tiny-49") gives the VAE that
+// config pairs with (VaePresetNameForConfig), so one --config names both
+// models. Throws InputError for any other name.
 VaeConfig VaePreset(const std::string& name);
 std::vector<std::string> VaePresetNames();
+
+// The VAE preset a DiT config preset pairs with: "tiny" and "tiny-49" -> "tiny"
+// (same latent channels and spatial compression; tiny-49 only has more latent
+// frames), "cogvideox-5b-i2v" -> "cogvideox-5b-i2v". Throws InputError naming
+// --config for an unknown preset.
+std::string VaePresetNameForConfig(const std::string& config);
 
 // State dict (diffusers names and shapes, module order): encoder.*, decoder.*.
 // Works with Weights / LoadWeights / InitWeights of diffusion/model.h.
