@@ -170,8 +170,8 @@ void PrintEvalSummary(const EvalReport& report,
     if (!*f) continue;
     std::cout << name << " " << (*f)->distance << " (" << (*f)->pred_samples
               << " predicted vs "
-              << ((*f)->gt_samples >= 0
-                      ? std::to_string((*f)->gt_samples) + " ground truth"
+              << ((*f)->gt_samples
+                      ? std::to_string(*(*f)->gt_samples) + " ground truth"
                       : "cached " + (*f)->gt_stats)
               << ", " << (*f)->dims << "-d)\n";
   }

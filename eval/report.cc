@@ -234,10 +234,13 @@ void WriteReportJson(const EvalReport& r,
   for (const auto& [name, f] : {std::pair("fid", &r.fid), {"fvd", &r.fvd}}) {
     if (!*f) continue;
     const FrechetReport& x = **f;
-    summary[name] = {
-        {"value", Num(x.distance)},   {"pred_samples", x.pred_samples},
-        {"gt_samples", x.gt_samples}, {"dims", x.dims},
-        {"model", x.model},           {"gt_stats", x.gt_stats}};
+    summary[name] = {{"value", Num(x.distance)},
+                     {"pred_samples", x.pred_samples},
+                     {"gt_samples", x.gt_samples ? nlohmann::json(*x.gt_samples)
+                                                 : nlohmann::json(nullptr)},
+                     {"dims", x.dims},
+                     {"model", x.model},
+                     {"gt_stats", x.gt_stats}};
   }
   if (r.trajectory) {
     const TrajectoryErrors& t = *r.trajectory;
@@ -342,16 +345,16 @@ void WriteReportMarkdown(const EvalReport& r, const std::string& md_path) {
   if (r.fid) {
     md << "FID: " << r.fid->model << ", " << r.fid->pred_samples
        << " predicted frames vs "
-       << (r.fid->gt_stats.empty() || r.fid->gt_samples >= 0
-               ? std::to_string(r.fid->gt_samples) + " ground-truth frames"
+       << (r.fid->gt_samples
+               ? std::to_string(*r.fid->gt_samples) + " ground-truth frames"
                : "cached statistics " + r.fid->gt_stats)
        << ". ";
   }
   if (r.fvd) {
     md << "FVD: " << r.fvd->model << ", " << r.fvd->pred_samples
        << " predicted clips vs "
-       << (r.fvd->gt_stats.empty() || r.fvd->gt_samples >= 0
-               ? std::to_string(r.fvd->gt_samples) + " ground-truth clips"
+       << (r.fvd->gt_samples
+               ? std::to_string(*r.fvd->gt_samples) + " ground-truth clips"
                : "cached statistics " + r.fvd->gt_stats)
        << ". ";
   }

@@ -30,7 +30,9 @@ struct VideoEvalRecord {
 struct FrechetReport {
   double distance = NAN;
   int64_t pred_samples = 0;  // feature vectors of the prediction
-  int64_t gt_samples = -1;   // -1 when the reference statistics were cached
+  // Ground-truth feature vectors; empty when the reference statistics were
+  // read from the cache (gt_stats) instead of computed.
+  std::optional<int64_t> gt_samples;
   int dims = 0;
   std::string model;     // TorchScript model path
   std::string gt_stats;  // reference statistics prefix ("" if none)

@@ -413,7 +413,10 @@ TEST(DeepMetrics, CliLpipsFidFvdAndReferenceStatsCache) {
   ASSERT_EQ(rc, 0) << out;
   std::ifstream in2(tmp + "/b/report.json");
   const nlohmann::json j2 = nlohmann::json::parse(in2);
-  EXPECT_EQ(j2["summary"]["fid"]["gt_samples"].get<int>(), -1);
+  // Cached statistics: no ground-truth sample count (null, not a sentinel).
+  EXPECT_TRUE(j2["summary"]["fid"]["gt_samples"].is_null());
+  EXPECT_EQ(j2["summary"]["fid"]["gt_stats"].get<std::string>(),
+            tmp + "/stats/ref_fid");
   EXPECT_NEAR(j2["summary"]["fid"]["value"].get<double>(),
               s["fid"]["value"].get<double>(), 1e-9);
   EXPECT_NEAR(j2["summary"]["fvd"]["value"].get<double>(),
