@@ -21,7 +21,7 @@
 namespace geodrive::diffusion {
 namespace {
 
-const char kPresets[] = "preset: cogvideox-5b-i2v or tiny";
+const char kPresets[] = "preset: tiny, tiny-49 or cogvideox-5b-i2v";
 
 CommandRunner SetupSample(CLI::App& cmd) {
   struct Args {
@@ -102,6 +102,9 @@ CommandRunner SetupInitWeights(CLI::App& cmd) {
   cmd.add_flag("--no-branch", a->no_branch, "write the backbone only");
   cmd.add_flag("--allow-large", io.allow_large,
                "allow more than 1e9 parameters");
+  cmd.add_flag("--vae", io.vae,
+               "write the VAE the preset pairs with (random test weights, "
+               "diffusers names) instead of the transformer");
   return [a] {
     a->io.with_branch = !a->no_branch;
     std::cout << InitWeightsFile(a->io) << std::endl;

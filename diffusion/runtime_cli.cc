@@ -21,11 +21,13 @@ void AddRuntimeOptions(CLI::App& cmd, RuntimeArgs* a, int flags) {
   cmd.add_option("--device", a->device,
                  "compute device: cpu, cuda or cuda:N (a CUDA LibTorch build)")
       ->capture_default_str();
-  cmd.add_option("--dtype", a->dtype,
-                 "dtype of the DiT's weights and activations: fp32, bf16 or "
-                 "fp16 (a checkpoint stored in it loads without conversion; "
-                 "scheduler, noise and output latents stay float32)")
-      ->capture_default_str();
+  if (!(flags & kRuntimeNoDitDtype)) {
+    cmd.add_option("--dtype", a->dtype,
+                   "dtype of the DiT's weights and activations: fp32, bf16 or "
+                   "fp16 (a checkpoint stored in it loads without conversion; "
+                   "scheduler, noise and output latents stay float32)")
+        ->capture_default_str();
+  }
   if (flags & kRuntimeVae) {
     cmd.add_option("--vae-dtype", a->vae_dtype,
                    "dtype of the VAE: fp32, bf16 or fp16")

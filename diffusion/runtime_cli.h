@@ -13,9 +13,10 @@ namespace diffusion {
 
 // Which of the options a command takes.
 enum RuntimeFlag : int {
-  kRuntimeVae = 1,        // --vae-dtype
-  kRuntimeAttention = 2,  // --attention
-  kRuntimeOffload = 4,    // --offload-backbone
+  kRuntimeVae = 1,         // --vae-dtype
+  kRuntimeAttention = 2,   // --attention
+  kRuntimeOffload = 4,     // --offload-backbone
+  kRuntimeNoDitDtype = 8,  // no --dtype (the VAE commands)
 };
 
 // The option strings as CLI11 parses them.
@@ -31,7 +32,8 @@ struct RuntimeArgs {
   AttentionBackend Attention() const;
 };
 
-// Adds --device and --dtype, plus the options `flags` selects.
+// Adds --device and --dtype (unless kRuntimeNoDitDtype), plus the options
+// `flags` selects.
 void AddRuntimeOptions(CLI::App& cmd, RuntimeArgs* args, int flags);
 
 }  // namespace diffusion

@@ -18,6 +18,8 @@
 #include "diffusion/safetensors.h"
 #include "diffusion/schedule.h"
 #include "diffusion/scheduler.h"
+#include "diffusion/vae.h"
+#include "diffusion/vae_config.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -315,6 +317,19 @@ SampleResult Sample(const SampleOptions& o) {
 std::string InitWeightsFile(const InitWeightsOptions& o) {
   o.Check();
   c10::InferenceMode guard;
+  if (o.vae) {
+    const VaeConfig vc = VaePreset(o.config);
+    const Weights w = VaeInitWeights(vc, o.seed);
+    std::vector<std::pair<std::string, at::Tensor>> all;
+    AppendForSave(w, "", &all);
+    SaveSafetensors(o.out, all,
+                    {{"config", vc.name}, {"seed", std::to_string(o.seed)}});
+    std::ostringstream os;
+    os << "wrote " << all.size() << " tensors ("
+       << NumElements(VaeParamSpecs(vc)) << " parameters, VAE " << vc.name
+       << ") to " << o.out;
+    return os.str();
+  }
   const DiTConfig cfg = ConfigPreset(o.config);
   const std::vector<ParamSpec> specs = BackboneParamSpecs(cfg);
   const int64_t n = NumElements(specs) +

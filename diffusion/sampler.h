@@ -69,6 +69,9 @@ struct InitWeightsOptions {
   bool nonzero_branch =
       false;                 // random (not zero) encoder projections, for tests
   bool allow_large = false;  // permit > 1e9 parameters (5B in float32 is 22 GB)
+  // Write the VAE that `config` pairs with (VaeInitWeights: random test
+  // weights, diffusers names) instead of the DiT.
+  bool vae = false;
   void Check() const;
 };
 

@@ -34,6 +34,8 @@
 #include "apps/cli/cli.h"
 #include "diffusion/config.h"
 #include "diffusion/model.h"
+#include "diffusion/runtime_cli.h"
+#include "diffusion/runtime_torch.h"
 #include "diffusion/safetensors.h"
 #include "diffusion/vae.h"
 #include "diffusion/vae_config.h"
@@ -100,18 +102,26 @@ Weights LoadVae(const VaeConfig& c,
                 const std::string& config,
                 const std::string& vae_weights,
                 uint64_t seed,
+                const RuntimeOptions& runtime,
                 std::string* source) {
+  // On --device in --vae-dtype (random weights drawn in float32 on the CPU,
+  // then placed: the same numbers on every device).
+  WeightPlacement placement;
+  placement.device = runtime.device;
+  placement.dtype = runtime.vae_dtype;
   if (vae_weights.empty()) {
     GEODRIVE_CHECK_INPUT(c.name == "tiny", "--config ", config,
                          ": give --vae-weights (diffusers vae/"
                          "diffusion_pytorch_model.safetensors); random "
                          "weights from --seed are for the tiny presets only");
     *source = "random tiny VAE (seed " + std::to_string(seed) + ")";
-    return VaeInitWeights(c, seed);
+    return VaeInitWeights(c, seed).To(
+        ComputeOptions(placement.device, placement.dtype));
   }
   *source = vae_weights;
   LoadReport report;
-  return LoadWeights(vae_weights, VaeParamSpecs(c), "", true, &report);
+  return LoadWeights(vae_weights, VaeParamSpecs(c), "", true, &report,
+                     placement);
 }
 
 // ---- Inputs ----
@@ -221,6 +231,8 @@ struct VaeEncodeOptions {
   // random weights from `seed` (tiny presets only, for tests).
   std::string vae_weights;
   uint64_t seed = 0;
+  // Device and VAE dtype (--device, --vae-dtype); the output is float32.
+  RuntimeOptions runtime;
   // Exactly one input. A video file (.mp4 ...; 8-bit RGB frames).
   std::string video;
   // A folder of PNG/JPG frames sorted by name; 16-bit PNGs keep 16 bits.
@@ -322,7 +334,8 @@ VaeEncodeResult RunVaeEncode(const VaeEncodeOptions& o) {
   }
   // An unusable output folder fails now; the weights load last.
   CreateOutputDirectory(fs::absolute(o.out).parent_path().string());
-  const Weights w = LoadVae(c, o.config, o.vae_weights, o.seed, &r.vae);
+  const Weights w =
+      LoadVae(c, o.config, o.vae_weights, o.seed, o.runtime, &r.vae);
   r.video_shape = video.sizes().vec();
   r.scale = o.no_scale ? 1.0 : c.scaling_factor;
   at::Tensor latents;
@@ -357,6 +370,8 @@ struct VaeDecodeOptions {
   // VAE checkpoint; empty: random tiny weights from `seed`.
   std::string vae_weights;
   uint64_t seed = 0;
+  // Device and VAE dtype (--device, --vae-dtype); the output is float32.
+  RuntimeOptions runtime;
   // Input safetensors: "latents" (or its only tensor), any float dtype.
   std::string latents;
   // Layout of the latents: "auto" (the file's "layout" metadata, else BFCHW
@@ -525,7 +540,8 @@ VaeDecodeResult RunVaeDecode(const VaeDecodeOptions& o) {
     if (!out.empty())
       CreateOutputDirectory(fs::absolute(out).parent_path().string());
   }
-  const Weights w = LoadVae(c, o.config, o.vae_weights, o.seed, &r.vae);
+  const Weights w =
+      LoadVae(c, o.config, o.vae_weights, o.seed, o.runtime, &r.vae);
   at::Tensor video;
   {
     at::NoGradGuard no_grad;
@@ -597,7 +613,10 @@ CommandRunner SetupVaeEncode(CLI::App& cmd) {
   cmd.add_option("--out", o->out, "output latents.safetensors")->required();
   cmd.add_flag("--no-scale", o->no_scale,
                "store the latent mean without the scaling_factor");
-  return [o] {
+  auto runtime = std::make_shared<RuntimeArgs>();
+  AddRuntimeOptions(cmd, runtime.get(), kRuntimeVae | kRuntimeNoDitDtype);
+  return [o, runtime] {
+    o->runtime = runtime->Parse();
     std::cout << RunVaeEncode(*o).BriefReport() << std::endl;
     return kExitOk;
   };
@@ -638,7 +657,10 @@ CommandRunner SetupVaeDecode(CLI::App& cmd) {
                  "output 8-bit MP4, as generate writes (batch 1)");
   cmd.add_option("--fps", o->fps, "--out-video frame rate")
       ->capture_default_str();
-  return [o] {
+  auto runtime = std::make_shared<RuntimeArgs>();
+  AddRuntimeOptions(cmd, runtime.get(), kRuntimeVae | kRuntimeNoDitDtype);
+  return [o, runtime] {
+    o->runtime = runtime->Parse();
     std::cout << RunVaeDecode(*o).BriefReport() << std::endl;
     return kExitOk;
   };
