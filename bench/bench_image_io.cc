@@ -81,6 +81,19 @@ BENCHMARK(BM_ReadImageRgbScaledJpeg)
     ->Arg(8)
     ->Unit(benchmark::kMillisecond);
 
+// Every M/8 scale (ReadImageRgbScaled with a JpegScale): 1/8, 1/4, 1/2 and
+// 1/1 have SIMD inverse DCTs in libjpeg-turbo, 3/8, 5/8, 3/4 and 7/8 run its C
+// ones (docs/PERFORMANCE.md, "Dataset builder").
+void BM_ReadImageRgbAtJpegScale(benchmark::State& state) {
+  const std::string path = NuscenesJpeg();
+  const geodrive::JpegScale scale{static_cast<int>(state.range(0)), 8};
+  for (auto _ : state)
+    benchmark::DoNotOptimize(geodrive::ReadImageRgbScaled(path, scale));
+}
+BENCHMARK(BM_ReadImageRgbAtJpegScale)
+    ->DenseRange(1, 8)
+    ->Unit(benchmark::kMillisecond);
+
 // Decode at full size, then cv::resize to 1/4 (INTER_AREA): what a caller
 // without ReadImageRgbScaled does.
 void BM_ReadImageRgbThenResizeQuarter(benchmark::State& state) {

@@ -160,6 +160,8 @@ ClipFrames ReadClipFrames(const DriveClip& clip,
   const int full = full_size_images < 0 ? n : std::min(n, full_size_images);
   out.gt.resize(n);
   out.full.resize(full);
+  const JpegScale scale = FrameDecodeScale(cam.width, cam.height, spec);
+  const bool full_scale = scale.num == scale.denom;
   for (int i = 0; i < n; ++i) {
     const std::string& path = clip.frames[i].image_path;
     if (i >= full) {  // DCT-scaled decode straight to the output size
@@ -171,10 +173,13 @@ ClipFrames ReadClipFrames(const DriveClip& clip,
         out.full[i].cols == cam.width && out.full[i].rows == cam.height, path,
         ": image is ", out.full[i].cols, "x", out.full[i].rows,
         " but the dataset says ", cam.width, "x", cam.height);
-    // The same output as ReadFrameAtOutputSize: the scaled decode again
-    // (decoding is cheaper than resizing the full image, and the ground
-    // truth must not depend on the scene source).
-    out.gt[i] = ReadFrameAtOutputSize(path, cam.width, cam.height, spec);
+    // The same output as ReadFrameAtOutputSize (the ground truth must not
+    // depend on the scene source): from this decode where that path decodes
+    // at full size too, else the scaled decode again (cheaper than resizing
+    // the full image).
+    out.gt[i] = full_scale
+                    ? FullFrameToOutput(out.full[i], spec)
+                    : ReadFrameAtOutputSize(path, cam.width, cam.height, spec);
   }
   return out;
 }

@@ -27,7 +27,7 @@ enum class Mode { kColor, kGray, kUnchanged };
 struct Request {
   Mode mode = Mode::kColor;
   bool rgb = false;     // kColor: RGB order instead of OpenCV's BGR
-  int scale_denom = 1;  // JPEG only: decode at 1/scale_denom (1, 2, 4, 8)
+  JpegScale scale;      // JPEG only: decode at scale.num / scale.denom
 };
 
 bool IsJpeg(const std::vector<uint8_t>& b) {
@@ -343,18 +343,21 @@ void CmykToGray(const cv::Mat& cmyk, cv::Mat* out) {
   }
 }
 
-// The TurboJPEG scaling factor 1/denom, if tjDecompress2 would pick exactly it
-// for its output size (it takes the first factor in its list whose output
-// fits; a larger factor with the same rounded size would win).
-bool TjPicksScale(int width, int height, int denom) {
+bool SameScale(const tjscalingfactor& a, const tjscalingfactor& b) {
+  return a.num * b.denom == b.num * a.denom;
+}
+
+// Whether tjDecompress2 would decode a width x height JPEG at exactly `want`
+// when asked for its output size (it takes the first, largest, factor in its
+// list whose output fits; a larger factor with the same rounded size wins).
+bool TjPicksScale(int width, int height, const tjscalingfactor& want) {
   int count = 0;
   const tjscalingfactor* factors = tjGetScalingFactors(&count);
-  if (factors == nullptr) return denom == 1;
-  const tjscalingfactor want{1, denom};
+  if (factors == nullptr) return want.num == want.denom;
   const int w = TJSCALED(width, want), h = TJSCALED(height, want);
   for (int i = 0; i < count; ++i) {
     if (TJSCALED(width, factors[i]) <= w && TJSCALED(height, factors[i]) <= h)
-      return factors[i].num == 1 && factors[i].denom == denom;
+      return SameScale(factors[i], want);
   }
   return false;
 }
@@ -378,7 +381,7 @@ cv::Mat DecodeJpeg(const std::string& path,
   int pixel_format = gray_out ? TJPF_GRAY : rgb ? TJPF_RGB : TJPF_BGR;
   if (cmyk) pixel_format = TJPF_CMYK;
 
-  const tjscalingfactor factor{1, request.scale_denom};
+  const tjscalingfactor factor{request.scale.num, request.scale.denom};
   const int width = TJSCALED(header.width, factor);
   const int height = TJSCALED(header.height, factor);
   cv::Mat decoded(height, width, CV_8UC(tjPixelSize[pixel_format]));
@@ -744,22 +747,22 @@ std::vector<uint8_t> EncodeJpeg(const std::string& path,
 }  // namespace
 
 cv::Mat ReadImageRgb(const std::string& path) {
-  return Decode(path, {Mode::kColor, /*rgb=*/true, /*scale_denom=*/1});
+  return Decode(path, {Mode::kColor, /*rgb=*/true, JpegScale{}});
 }
 
 cv::Mat ReadImageGray(const std::string& path) {
-  return Decode(path, {Mode::kGray, /*rgb=*/false, /*scale_denom=*/1});
+  return Decode(path, {Mode::kGray, /*rgb=*/false, JpegScale{}});
 }
 
 cv::Mat ReadImageUnchanged(const std::string& path) {
-  return Decode(path, {Mode::kUnchanged, /*rgb=*/false, /*scale_denom=*/1});
+  return Decode(path, {Mode::kUnchanged, /*rgb=*/false, JpegScale{}});
 }
 
 cv::Mat ReadImageRgbScaled(const std::string& path,
                            int min_width,
                            int min_height) {
   const std::vector<uint8_t> bytes = ReadImageFile(path);
-  Request request{Mode::kColor, /*rgb=*/true, /*scale_denom=*/1};
+  Request request{Mode::kColor, /*rgb=*/true, JpegScale{}};
   if (IsPng(bytes)) return DecodePng(path, bytes, request);
   const JpegScan scan = ScanJpeg(bytes);
   if (!scan.complete)
@@ -775,11 +778,54 @@ cv::Mat ReadImageRgbScaled(const std::string& path,
     const tjscalingfactor f{1, denom};
     if (TJSCALED(header.width, f) >= min_width &&
         TJSCALED(header.height, f) >= min_height &&
-        TjPicksScale(header.width, header.height, denom)) {
-      request.scale_denom = denom;
+        TjPicksScale(header.width, header.height, f)) {
+      request.scale = {1, denom};
       break;
     }
   }
+  return DecodeJpeg(path, bytes, request);
+}
+
+std::vector<JpegScale> JpegDecodeScales(int width, int height) {
+  std::vector<JpegScale> scales;
+  int count = 0;
+  const tjscalingfactor* factors = tjGetScalingFactors(&count);
+  // The list runs from the largest factor (2/1) to the smallest (1/8).
+  for (int i = factors == nullptr ? -1 : count - 1; i >= 0; --i) {
+    const tjscalingfactor& f = factors[i];
+    if (f.num > f.denom) continue;
+    if (width > 0 && height > 0 && !TjPicksScale(width, height, f)) continue;
+    scales.push_back({f.num, f.denom});
+  }
+  if (scales.empty() || scales.back().num != scales.back().denom)
+    scales.push_back({1, 1});
+  return scales;
+}
+
+cv::Mat ReadImageRgbScaled(const std::string& path, JpegScale scale) {
+  const std::vector<uint8_t> bytes = ReadImageFile(path);
+  Request request{Mode::kColor, /*rgb=*/true, JpegScale{}};
+  if (IsPng(bytes)) return DecodePng(path, bytes, request);
+  if (!ScanJpeg(bytes).complete)
+    ThrowInputError(path, "truncated or corrupt JPEG (no end-of-image marker)");
+  JpegHeader header;
+  {
+    TjHandle tj = NewTjHandle(path, /*decompress=*/true);
+    header = ReadJpegHeader(path, tj.get(), bytes);
+  }
+  bool supported = false;
+  if (scale.num > 0 && scale.denom > 0) {
+    for (const JpegScale& s : JpegDecodeScales(header.width, header.height)) {
+      supported =
+          supported || SameScale({s.num, s.denom}, {scale.num, scale.denom});
+    }
+  }
+  if (!supported) {
+    ThrowInputError(path, "cannot decode a ", header.width, "x", header.height,
+                    " JPEG at scale ", scale.num, "/", scale.denom,
+                    " (not one of libjpeg-turbo's scales for that size)");
+  }
+  request.scale = scale;
   return DecodeJpeg(path, bytes, request);
 }
 
@@ -820,10 +866,12 @@ void WriteJpeg(const std::string& path, const cv::Mat& rgb, int quality) {
   WriteFileAtomic(path, encoded.data(), encoded.size());
 }
 
-cv::Size ReadImageSize(const std::string& path) {
+ImageHeader ReadImageHeader(const std::string& path) {
   const std::vector<uint8_t> bytes = ReadImageFile(path);
   int width = 0, height = 0, orientation = 1;
-  if (IsPng(bytes)) {
+  ImageHeader header;
+  header.jpeg = !IsPng(bytes);
+  if (!header.jpeg) {
     const PngScan scan = ScanPng(bytes);
     if (!scan.complete)
       ThrowInputError(path, "truncated or corrupt PNG (no IEND chunk)");
@@ -844,8 +892,15 @@ cv::Size ReadImageSize(const std::string& path) {
     height = header.height;
     orientation = JpegOrientation(scan);
   }
-  return SwapsSides(orientation) ? cv::Size(height, width)
-                                 : cv::Size(width, height);
+  // ApplyOrientation leaves the image as stored for any other value.
+  header.orientation = orientation >= 1 && orientation <= 8 ? orientation : 1;
+  header.size = SwapsSides(header.orientation) ? cv::Size(height, width)
+                                               : cv::Size(width, height);
+  return header;
+}
+
+cv::Size ReadImageSize(const std::string& path) {
+  return ReadImageHeader(path).size;
 }
 
 }  // namespace geodrive

@@ -34,6 +34,23 @@ cv::Mat ReadImageGray(const std::string& path);
 // Reads an image unchanged (8- or 16-bit; 1, 3 or 4 channels), BGR/BGRA order
 // as OpenCV stores it, EXIF orientation not applied (as cv::IMREAD_UNCHANGED).
 cv::Mat ReadImageUnchanged(const std::string& path);
+// A JPEG decoding scale num/denom. libjpeg scales in the DCT domain: the
+// inverse DCT of each 8x8 block yields 8 * num / denom samples per side, which
+// skips most of the IDCT, colour-conversion and upsampling work of a full
+// decode (the entropy decoding is not reduced).
+struct JpegScale {
+  int num = 1;
+  int denom = 1;
+};
+
+// The scales at or below 1/1 at which ReadImageRgbScaled decodes a JPEG of
+// width x height pixels, smallest first: the scaling factors this
+// libjpeg-turbo lists (tjGetScalingFactors; 1/8, 1/4, 3/8, 1/2, 5/8, 3/4, 7/8
+// and 1/1 in libjpeg-turbo 2.1), less any that TurboJPEG would not pick for its
+// own output size (a larger factor with the same rounded size wins; only tiny
+// images). Symmetric in width and height.
+std::vector<JpegScale> JpegDecodeScales(int width, int height);
+
 // Reads as ReadImageRgb, but decodes a JPEG at the smallest of the scales 1/8,
 // 1/4, 1/2 and 1 (libjpeg's DCT scaling, much faster than decoding then
 // resizing) whose output is still at least min_width x min_height (after EXIF
@@ -42,6 +59,17 @@ cv::Mat ReadImageUnchanged(const std::string& path);
 cv::Mat ReadImageRgbScaled(const std::string& path,
                            int min_width,
                            int min_height);
+// Reads as ReadImageRgb, but decodes a JPEG at `scale`, one of
+// JpegDecodeScales() for its size (InputError naming the file otherwise). A W
+// x H JPEG comes out ceil(W * num / denom) x ceil(H * num / denom), and output
+// pixel j covers the source pixels [j * denom / num, (j + 1) * denom / num)
+// along each axis: where W * num / denom is not whole, the last column reaches
+// past the source's edge (libjpeg repeats the edge there), so a caller that
+// maps pixel centres must use the unrounded size, not the decoded one. EXIF
+// orientation is applied after the decode: an orientation that reverses an
+// axis puts that partial pixel first (ReadImageHeader gives the orientation).
+// PNGs are read at full size.
+cv::Mat ReadImageRgbScaled(const std::string& path, JpegScale scale);
 
 // Writes an RGB CV_8UC3 image (also RGBA CV_8UC4, gray CV_8UC1 and, PNG only,
 // 16-bit gray CV_16UC1 and 16-bit RGB CV_16UC3); the format follows the
@@ -64,9 +92,20 @@ std::vector<uint8_t> EncodeJpegRgb(const cv::Mat& rgb,
 // EncodeJpegRgb written atomically (temporary file + rename) to `path`.
 void WriteJpeg(const std::string& path, const cv::Mat& rgb, int quality);
 
-// Size of the image ReadImageRgb would return, from the header alone (JPEG SOF
-// and EXIF orientation, PNG IHDR and eXIf): nothing is decoded. Truncated files
-// and images over ImageReadLimits are errors, as for the readers.
+// What the header of an image file says (JPEG SOF and EXIF orientation, PNG
+// IHDR and eXIf): nothing is decoded. Truncated files and images over
+// ImageReadLimits are errors, as for the readers.
+struct ImageHeader {
+  // The size ReadImageRgb returns (EXIF orientation applied).
+  cv::Size size;
+  // The EXIF orientation ReadImageRgb applies, 1..8 (1: as stored; absent and
+  // invalid values read as 1).
+  int orientation = 1;
+  // A JPEG (else a PNG).
+  bool jpeg = false;
+};
+ImageHeader ReadImageHeader(const std::string& path);
+// ReadImageHeader(path).size.
 cv::Size ReadImageSize(const std::string& path);
 
 }  // namespace geodrive

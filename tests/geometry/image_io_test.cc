@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -680,6 +681,19 @@ TEST(ImageIo, ExifOrientationIsAppliedAsOpenCvDoes) {
   EXPECT_EQ(ReadImageSize(dir + "/ii_6.jpg"), swapped);
   EXPECT_EQ(ReadImageRgb(dir + "/mm_8.png").size(), swapped);
   EXPECT_EQ(ReadImageUnchanged(dir + "/mm_8.jpg").size(), rgb.size());
+  // ReadImageHeader: the orientation ReadImageRgb applies (0 and 9 read as
+  // 1: as stored), the size it returns, the format.
+  for (int orientation = 0; orientation <= 9; ++orientation) {
+    for (const std::string ext : {".jpg", ".png"}) {
+      const std::string path = dir + "/ii_" + std::to_string(orientation) + ext;
+      const ImageHeader header = ReadImageHeader(path);
+      EXPECT_EQ(header.orientation,
+                orientation >= 1 && orientation <= 8 ? orientation : 1)
+          << path;
+      EXPECT_EQ(header.size, ReadImageRgb(path).size()) << path;
+      EXPECT_EQ(header.jpeg, ext == ".jpg") << path;
+    }
+  }
 
   // Malformed or unusual EXIF: parsed as OpenCV parses it, never out of
   // bounds.
@@ -767,6 +781,88 @@ TEST(ImageIo, ScaledJpegDecodeMatchesOpenCvReduced) {
   // PNG: full size.
   EXPECT_EQ(ReadImageRgbScaled(test::RealDataPath(kKittiPng), 10, 10).size(),
             cv::Size(1242, 375));
+}
+
+// Any M/8 scale (JpegDecodeScales): ceil(side * M / 8) per side; 1/8, 1/2
+// and 1/1 give the pixels of the min-size overload and of ReadImageRgb; EXIF
+// orientation applies after the decode; a scale the library does not list,
+// or would not pick for the image's size, is an InputError naming the file.
+TEST(ImageIo, JpegDecodeAtAnyListedScale) {
+  const auto names = [](const std::vector<JpegScale>& scales) {
+    std::vector<std::string> out;
+    for (const JpegScale& s : scales)
+      out.push_back(std::to_string(s.num) + "/" + std::to_string(s.denom));
+    return out;
+  };
+  EXPECT_THAT(names(JpegDecodeScales(1600, 900)),
+              ::testing::ElementsAre("1/8", "1/4", "3/8", "1/2", "5/8", "3/4",
+                                     "7/8", "1/1"));
+  EXPECT_EQ(names(JpegDecodeScales(900, 1600)),
+            names(JpegDecodeScales(1600, 900)));
+  // 3x3: 1/8 and 1/4 both give 1x1 (TurboJPEG takes the larger, 1/4), 3/8,
+  // 1/2 and 5/8 2x2, the rest 3x3.
+  EXPECT_THAT(names(JpegDecodeScales(3, 3)),
+              ::testing::ElementsAre("1/4", "5/8", "1/1"));
+  EXPECT_THAT(names(JpegDecodeScales(1, 1)), ::testing::ElementsAre("1/1"));
+
+  const std::string path = test::RealDataPath(kNuscenesJpeg);
+  for (const JpegScale& s : JpegDecodeScales(1600, 900)) {
+    const cv::Mat rgb = ReadImageRgbScaled(path, s);
+    EXPECT_EQ(rgb.size(), cv::Size((1600 * s.num + s.denom - 1) / s.denom,
+                                   (900 * s.num + s.denom - 1) / s.denom))
+        << s.num << "/" << s.denom;
+    EXPECT_EQ(rgb.type(), CV_8UC3);
+  }
+  EXPECT_EQ(ReadImageRgbScaled(path, JpegScale{5, 8}).size(),
+            cv::Size(1000, 563));
+  EXPECT_TRUE(Identical(ReadImageRgbScaled(path, JpegScale{1, 2}),
+                        ReadImageRgbScaled(path, 800, 450)));
+  EXPECT_TRUE(Identical(ReadImageRgbScaled(path, JpegScale{2, 4}),
+                        ReadImageRgbScaled(path, 800, 450)));  // by value
+  EXPECT_TRUE(Identical(ReadImageRgbScaled(path, JpegScale{1, 8}),
+                        ReadImageRgbScaled(path, 200, 113)));
+  EXPECT_TRUE(
+      Identical(ReadImageRgbScaled(path, JpegScale{1, 1}), ReadImageRgb(path)));
+  // A 5/8 decode is the image at 5/8: close to the full decode area-resized
+  // to 1000x562.5 (the last, partial row left out).
+  cv::Mat area;
+  cv::resize(ReadImageRgb(path), area, cv::Size(), 0.625, 0.625,
+             cv::INTER_AREA);
+  const cv::Rect top(0, 0, 1000, 562);
+  const double l2 = cv::norm(ReadImageRgbScaled(path, JpegScale{5, 8})(top),
+                             area(top), cv::NORM_L2);
+  EXPECT_GT(10 * std::log10(255.0 * 255.0 * top.area() * 3 / (l2 * l2)), 35.0);
+
+  const std::string dir = test::MakeTempDir("img_any_scale");
+  const std::string bytes = ReadAll(path);
+  WriteAll(dir + "/rot.jpg",
+           WithApp1(bytes, std::string("Exif\0\0", 6) +
+                               Tiff(true, {OrientationEntry(true, 6)})));
+  const cv::Mat rotated = ReadImageRgbScaled(dir + "/rot.jpg", JpegScale{5, 8});
+  EXPECT_EQ(rotated.size(), cv::Size(563, 1000));
+  cv::Mat expected;
+  cv::rotate(ReadImageRgbScaled(path, JpegScale{5, 8}), expected,
+             cv::ROTATE_90_CLOCKWISE);
+  EXPECT_TRUE(Identical(rotated, expected));
+
+  for (const JpegScale s : {JpegScale{2, 3}, JpegScale{3, 2}, JpegScale{0, 8},
+                            JpegScale{1, 0}, JpegScale{-1, -8}}) {
+    EXPECT_EQ(ErrorOf([&] { ReadImageRgbScaled(path, s); }),
+              path + ": cannot decode a 1600x900 JPEG at scale " +
+                  std::to_string(s.num) + "/" + std::to_string(s.denom) +
+                  " (not one of libjpeg-turbo's scales for that size)");
+  }
+  WriteImageRgb(dir + "/tiny.jpg", RandomImage(3, 3, CV_8UC3));
+  EXPECT_EQ(ReadImageRgbScaled(dir + "/tiny.jpg", JpegScale{1, 4}).size(),
+            cv::Size(1, 1));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadImageRgbScaled(dir + "/tiny.jpg", JpegScale{1, 8});
+              }),
+              HasSubstr("cannot decode a 3x3 JPEG at scale 1/8"));
+  // PNG: full size at any scale.
+  EXPECT_EQ(
+      ReadImageRgbScaled(test::RealDataPath(kKittiPng), JpegScale{1, 8}).size(),
+      cv::Size(1242, 375));
 }
 
 // ---- Hardening ----
