@@ -143,6 +143,46 @@ void DrawProgress(int done, int total, int64_t t, double elapsed) {
   std::fflush(stderr);
 }
 
+// The prompt embeddings of --prompt-embeds expanded to batch B (float32, CPU):
+// *pos always (zeros without the file), *neg when the file has them.
+void LoadPromptEmbeds(const SampleOptions& o,
+                      const DiTConfig& cfg,
+                      int64_t B,
+                      at::Tensor* pos_out,
+                      at::Tensor* neg_out) {
+  at::Tensor pos, neg;
+  if (!o.prompt_embeds.empty()) {
+    SafetensorsCheckpoint pe(o.prompt_embeds);
+    GEODRIVE_CHECK_INPUT(pe.Has("prompt_embeds"), o.prompt_embeds,
+                         ": needs a tensor 'prompt_embeds' [1|B, L, ",
+                         cfg.text_embed_dim, "]");
+    pos = pe.Load("prompt_embeds").to(at::kFloat);
+    if (pe.Has("negative_prompt_embeds")) {
+      neg = pe.Load("negative_prompt_embeds").to(at::kFloat);
+    } else {
+      GEODRIVE_CHECK_INPUT(
+          o.guidance == 1.0, o.prompt_embeds,
+          ": needs 'negative_prompt_embeds' (T5 of the empty prompt) for "
+          "guidance ",
+          o.guidance, " (or pass --guidance 1)");
+    }
+    for (at::Tensor* t : {&pos, &neg}) {
+      if (!t->defined()) continue;
+      GEODRIVE_CHECK_INPUT(
+          t->dim() == 3 && (t->size(0) == 1 || t->size(0) == B) &&
+              t->size(2) == cfg.text_embed_dim,
+          o.prompt_embeds, ": prompt embeddings must be [1|", B, ", L, ",
+          cfg.text_embed_dim, "], got ", ShapeToString(t->sizes().vec()));
+      CheckFinite(*t, o.prompt_embeds);
+      *t = t->expand({B, t->size(1), t->size(2)}).contiguous();
+    }
+  } else {
+    pos = at::zeros({B, cfg.text_seq_len, cfg.text_embed_dim});
+  }
+  *pos_out = pos;
+  *neg_out = neg;
+}
+
 }  // namespace
 
 SampleResult Sample(const SampleOptions& o) {
@@ -216,34 +256,7 @@ SampleResult Sample(const SampleOptions& o) {
 
   // Text: [negative; positive] for classifier-free guidance.
   at::Tensor pos, neg;
-  if (!o.prompt_embeds.empty()) {
-    SafetensorsCheckpoint pe(o.prompt_embeds);
-    GEODRIVE_CHECK_INPUT(pe.Has("prompt_embeds"), o.prompt_embeds,
-                         ": needs a tensor 'prompt_embeds' [1|B, L, ",
-                         cfg.text_embed_dim, "]");
-    pos = pe.Load("prompt_embeds").to(at::kFloat);
-    if (pe.Has("negative_prompt_embeds")) {
-      neg = pe.Load("negative_prompt_embeds").to(at::kFloat);
-    } else {
-      GEODRIVE_CHECK_INPUT(
-          o.guidance == 1.0, o.prompt_embeds,
-          ": needs 'negative_prompt_embeds' (T5 of the empty prompt) for "
-          "guidance ",
-          o.guidance, " (or pass --guidance 1)");
-    }
-    for (at::Tensor* t : {&pos, &neg}) {
-      if (!t->defined()) continue;
-      GEODRIVE_CHECK_INPUT(
-          t->dim() == 3 && (t->size(0) == 1 || t->size(0) == B) &&
-              t->size(2) == cfg.text_embed_dim,
-          o.prompt_embeds, ": prompt embeddings must be [1|", B, ", L, ",
-          cfg.text_embed_dim, "], got ", ShapeToString(t->sizes().vec()));
-      CheckFinite(*t, o.prompt_embeds);
-      *t = t->expand({B, t->size(1), t->size(2)}).contiguous();
-    }
-  } else {
-    pos = at::zeros({B, cfg.text_seq_len, cfg.text_embed_dim});
-  }
+  LoadPromptEmbeds(o, cfg, B, &pos, &neg);
   pos = pos.to(f32);
   if (neg.defined()) neg = neg.to(f32);
   const bool use_cfg = neg.defined() && o.guidance != 1.0;

@@ -472,6 +472,46 @@ struct Trainer::Impl {
     return (pred.to(at::kFloat) - v).pow(2).mean();
   }
 
+  // Restores the optimiser moments, the step and the generator's state of a
+  // checkpoint-<step>/ folder (its training_state.safetensors).
+  void RestoreState(const std::string& dir) {
+    const std::string path = dir + "/" + kStateFile;
+    SafetensorsFile st(path);
+    const auto fmt = st.metadata().find("format");
+    GEODRIVE_CHECK_INPUT(
+        fmt != st.metadata().end() && fmt->second == kStateFormat, path,
+        ": not a ", kStateFormat, " file");
+    const auto cfg_it = st.metadata().find("config");
+    GEODRIVE_CHECK_INPUT(
+        cfg_it != st.metadata().end() && cfg_it->second == cfg.name, path,
+        ": written for config '",
+        cfg_it == st.metadata().end() ? "" : cfg_it->second, "', not '",
+        cfg.name, "'");
+    GEODRIVE_CHECK_INPUT(st.Has("global_step") && st.Has("rng_state"), path,
+                         ": lacks global_step or rng_state");
+    step = st.Load("global_step").item<int64_t>();
+    GEODRIVE_CHECK_INPUT(step >= 0, path, ": negative global_step");
+    gen.set_state(st.Load("rng_state"));
+    for (size_t i = 0; i < trained.size(); ++i) {
+      const std::string& name = trained[i];
+      if (!st.Has("exp_avg." + name)) continue;  // never stepped
+      GEODRIVE_CHECK_INPUT(
+          st.Has("exp_avg_sq." + name) && st.Has("adam_step." + name), path,
+          ": incomplete optimizer state for '", name, "'");
+      at::Tensor ea = OnDevice(st.Load("exp_avg." + name));
+      at::Tensor eas = OnDevice(st.Load("exp_avg_sq." + name));
+      GEODRIVE_CHECK_INPUT(
+          ea.sizes() == params[i].sizes() && eas.sizes() == params[i].sizes(),
+          path, ": optimizer state of '", name, "' has the wrong shape");
+      auto state = std::make_unique<torch::optim::AdamWParamState>();
+      state->step(st.Load("adam_step." + name).item<int64_t>());
+      state->exp_avg(ea);
+      state->exp_avg_sq(eas);
+      opt->state()[c10::guts::to_string(params[i].unsafeGetTensorImpl())] =
+          std::move(state);
+    }
+  }
+
   // Image latent padded with zeros to F' frames: [B, F', C, h, w].
   at::Tensor PadImage(const at::Tensor& image, int64_t frames) const {
     const int64_t B = image.size(0);
@@ -584,44 +624,7 @@ Trainer::Trainer(const TrainOptions& options) : impl_(new Impl) {
   }
 
   // Resume: optimizer moments, step, RNG.
-  if (!m.o.resume.empty()) {
-    const std::string path = m.o.resume + "/" + kStateFile;
-    SafetensorsFile st(path);
-    const auto fmt = st.metadata().find("format");
-    GEODRIVE_CHECK_INPUT(
-        fmt != st.metadata().end() && fmt->second == kStateFormat, path,
-        ": not a ", kStateFormat, " file");
-    const auto cfg_it = st.metadata().find("config");
-    GEODRIVE_CHECK_INPUT(
-        cfg_it != st.metadata().end() && cfg_it->second == m.cfg.name, path,
-        ": written for config '",
-        cfg_it == st.metadata().end() ? "" : cfg_it->second, "', not '",
-        m.cfg.name, "'");
-    GEODRIVE_CHECK_INPUT(st.Has("global_step") && st.Has("rng_state"), path,
-                         ": lacks global_step or rng_state");
-    m.step = st.Load("global_step").item<int64_t>();
-    GEODRIVE_CHECK_INPUT(m.step >= 0, path, ": negative global_step");
-    m.gen.set_state(st.Load("rng_state"));
-    for (size_t i = 0; i < m.trained.size(); ++i) {
-      const std::string& name = m.trained[i];
-      if (!st.Has("exp_avg." + name)) continue;  // never stepped
-      GEODRIVE_CHECK_INPUT(
-          st.Has("exp_avg_sq." + name) && st.Has("adam_step." + name), path,
-          ": incomplete optimizer state for '", name, "'");
-      at::Tensor ea = m.OnDevice(st.Load("exp_avg." + name));
-      at::Tensor eas = m.OnDevice(st.Load("exp_avg_sq." + name));
-      GEODRIVE_CHECK_INPUT(ea.sizes() == m.params[i].sizes() &&
-                               eas.sizes() == m.params[i].sizes(),
-                           path, ": optimizer state of '", name,
-                           "' has the wrong shape");
-      auto state = std::make_unique<torch::optim::AdamWParamState>();
-      state->step(st.Load("adam_step." + name).item<int64_t>());
-      state->exp_avg(ea);
-      state->exp_avg_sq(eas);
-      m.opt->state()[c10::guts::to_string(m.params[i].unsafeGetTensorImpl())] =
-          std::move(state);
-    }
-  }
+  if (!m.o.resume.empty()) m.RestoreState(m.o.resume);
 
   // Data.
   if (m.o.cache_latents) {

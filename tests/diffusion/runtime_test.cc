@@ -53,8 +53,16 @@ TEST(DiffusionRuntime, ParsesDevicesAndDtypesWholeString) {
 }
 
 TEST(DiffusionRuntime, CudaOnACpuOnlyLibTorchIsAnInputError) {
-  if (GetRuntimeInfo().cuda_available) GTEST_SKIP() << "CUDA build";
   RuntimeOptions r;
+  const RuntimeInfo info = GetRuntimeInfo();
+  if (info.cuda_available) {
+    // A CUDA build: the visible devices pass, the next ordinal does not.
+    r.device = ParseDevice("cuda:" + std::to_string(info.cuda_devices));
+    EXPECT_THROW(r.Check(), InputError);
+    r.device = ParseDevice("cuda:0");
+    EXPECT_NO_THROW(r.Check());
+    return;
+  }
   r.device = ParseDevice("cuda:0");
   try {
     r.Check();
