@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -71,6 +72,46 @@ struct PairLatents {
   at::Tensor gt, cond, image, first_frame;
 };
 
+// The backward of a checkpointed function (the encoder, a backbone block):
+// recomputes `run` with grad enabled from detached copies of the saved inputs
+// and returns the gradients of the inputs that required them, at index 1 + i
+// (index 0 is the Function's spec pointer, which has none).
+torch::autograd::variable_list RecomputeInputGrads(
+    const torch::autograd::variable_list& saved,
+    const torch::autograd::variable_list& grad_outputs,
+    const std::function<
+        std::vector<at::Tensor>(const std::vector<at::Tensor>&)>& run) {
+  std::vector<at::Tensor> leaves, wrt;
+  std::vector<size_t> wrt_index;
+  for (size_t i = 0; i < saved.size(); ++i) {
+    at::Tensor leaf = saved[i].detach();
+    if (saved[i].requires_grad()) {
+      leaf.requires_grad_(true);
+      wrt.push_back(leaf);
+      wrt_index.push_back(i);
+    }
+    leaves.push_back(leaf);
+  }
+  std::vector<at::Tensor> outputs;
+  {
+    at::AutoGradMode enable(true);
+    outputs = run(leaves);
+  }
+  std::vector<at::Tensor> used_out, used_grad;
+  for (size_t k = 0; k < outputs.size(); ++k) {
+    if (!grad_outputs[k].defined() || !outputs[k].requires_grad()) continue;
+    used_out.push_back(outputs[k]);
+    used_grad.push_back(grad_outputs[k]);
+  }
+  torch::autograd::variable_list grads(saved.size() + 1);
+  if (wrt.empty() || used_out.empty()) return grads;
+  const torch::autograd::variable_list g =
+      torch::autograd::grad(used_out, wrt, used_grad, /*retain_graph=*/false,
+                            /*create_graph=*/false, /*allow_unused=*/true);
+  for (size_t j = 0; j < wrt_index.size(); ++j) grads[1 + wrt_index[j]] = g[j];
+  return grads;
+}
+
 // The encoder's custom autograd Function (gradient checkpointing).
 struct BranchCheckpointSpec {
   const DiTConfig* config;
@@ -109,38 +150,10 @@ struct BranchCheckpointFunction
       torch::autograd::variable_list grad_outputs) {
     const auto* spec = reinterpret_cast<const BranchCheckpointSpec*>(
         ctx->saved_data["spec"].toInt());
-    const torch::autograd::variable_list saved = ctx->get_saved_variables();
-    std::vector<at::Tensor> leaves;
-    std::vector<at::Tensor> wrt;
-    std::vector<size_t> wrt_index;
-    for (size_t i = 0; i < saved.size(); ++i) {
-      at::Tensor leaf = saved[i].detach();
-      if (saved[i].requires_grad()) {
-        leaf.requires_grad_(true);
-        wrt.push_back(leaf);
-        wrt_index.push_back(i);
-      }
-      leaves.push_back(leaf);
-    }
-    std::vector<at::Tensor> outputs;
-    {
-      at::AutoGradMode enable(true);
-      outputs = RunBranch(*spec, leaves);
-    }
-    std::vector<at::Tensor> used_out, used_grad;
-    for (size_t k = 0; k < outputs.size(); ++k) {
-      if (!grad_outputs[k].defined()) continue;
-      used_out.push_back(outputs[k]);
-      used_grad.push_back(grad_outputs[k]);
-    }
-    torch::autograd::variable_list grads(saved.size() + 1);  // + spec pointer
-    if (wrt.empty() || used_out.empty()) return grads;
-    const torch::autograd::variable_list g =
-        torch::autograd::grad(used_out, wrt, used_grad, /*retain_graph=*/false,
-                              /*create_graph=*/false, /*allow_unused=*/true);
-    for (size_t j = 0; j < wrt_index.size(); ++j)
-      grads[1 + wrt_index[j]] = g[j];
-    return grads;
+    return RecomputeInputGrads(ctx->get_saved_variables(), grad_outputs,
+                               [spec](const std::vector<at::Tensor>& in) {
+                                 return RunBranch(*spec, in);
+                               });
   }
 };
 
@@ -178,39 +191,15 @@ struct BlockCheckpointFunction
       torch::autograd::variable_list grad_outputs) {
     const auto* spec = reinterpret_cast<const BlockCheckpointSpec*>(
         ctx->saved_data["spec"].toInt());
-    const torch::autograd::variable_list saved = ctx->get_saved_variables();
-    std::vector<at::Tensor> in, wrt;
-    std::vector<size_t> wrt_index;
-    for (size_t i = 0; i < saved.size(); ++i) {
-      at::Tensor leaf = saved[i].detach();
-      if (saved[i].requires_grad()) {
-        leaf.requires_grad_(true);
-        wrt.push_back(leaf);
-        wrt_index.push_back(i);
-      }
-      in.push_back(leaf);
-    }
-    at::Tensor v = in[0], t = in[1];
-    {
-      at::AutoGradMode enable(true);
-      BlockForward(spec->config, *spec->weights, spec->prefix, in[2],
-                   spec->rope, spec->options, &v, &t);
-    }
-    std::vector<at::Tensor> outs, grads;
-    const at::Tensor produced[2] = {v, t};
-    for (size_t k = 0; k < 2; ++k) {
-      if (!grad_outputs[k].defined() || !produced[k].requires_grad()) continue;
-      outs.push_back(produced[k]);
-      grads.push_back(grad_outputs[k]);
-    }
-    torch::autograd::variable_list result(4);  // spec, video, text, temb
-    if (wrt.empty() || outs.empty()) return result;
-    const torch::autograd::variable_list g =
-        torch::autograd::grad(outs, wrt, grads, /*retain_graph=*/false,
-                              /*create_graph=*/false, /*allow_unused=*/true);
-    for (size_t j = 0; j < wrt_index.size(); ++j)
-      result[1 + wrt_index[j]] = g[j];
-    return result;
+    // saved: video, text, temb.
+    return RecomputeInputGrads(ctx->get_saved_variables(), grad_outputs,
+                               [spec](const std::vector<at::Tensor>& in) {
+                                 at::Tensor v = in[0], t = in[1];
+                                 BlockForward(spec->config, *spec->weights,
+                                              spec->prefix, in[2], spec->rope,
+                                              spec->options, &v, &t);
+                                 return std::vector<at::Tensor>{v, t};
+                               });
   }
 };
 
