@@ -27,6 +27,9 @@ function(geodrive_add_library)
     $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/generated>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/geodrive>)
   target_compile_options(${ARG_NAME} PRIVATE ${GEODRIVE_WARNINGS})
+  if(GEODRIVE_FUZZ AND ARG_NAME IN_LIST GEODRIVE_FUZZ_COVERAGE_LIBS)
+    target_compile_options(${ARG_NAME} PRIVATE -fsanitize=fuzzer-no-link)
+  endif()
   target_link_libraries(${ARG_NAME} PUBLIC ${ARG_PUBLIC_LINK_LIBS} PRIVATE ${ARG_PRIVATE_LINK_LIBS})
   install(TARGETS ${ARG_NAME} EXPORT geodriveTargets
     ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
