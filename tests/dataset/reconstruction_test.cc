@@ -628,81 +628,110 @@ std::string VggtGridFixture(const Truth& t,
   return dir;
 }
 
-TEST(Reconstruction, BuilderBuildsEveryFormatLikeMonst3r) {
+// One build over every clip with `geometry` from the folders under `in`.
+std::string BuildWithGeometry(const std::string& geometry,
+                              const std::string& in,
+                              const std::string& out) {
+  BuildDatasetOptions o;
+  o.dataroot = World();
+  o.monst3r_root = in;
+  o.geometry = geometry;
+  o.out = out;
+  o.quiet = true;
+  o.threads = 2;
+  const BuildDatasetSummary s = BuildDataset(o);
+  std::printf("%s: %s\n", geometry.c_str(), s.BriefReport().c_str());
+  EXPECT_EQ(s.built, static_cast<int>(ClipIds().size()))
+      << geometry << ": " << ReadAll(o.out + "/failures.jsonl");
+  return o.out;
+}
+
+// The MonST3R build every other format is compared with (built once, shared
+// by the tests below).
+const std::string& Monst3rReferenceBuild() {
+  static const std::string out =
+      test::SharedFixtureDir("recon_build_monst3r", [](const std::string& dir) {
+        BuildWithGeometry("monst3r", World() + "/monst3r", dir);
+      });
+  return out;
+}
+
+// Each reconstruction format written from the same truth builds the same
+// pairs as the MonST3R folders (one test per format below, so that they run
+// in parallel).
+void ExpectBuildLikeMonst3r(ReconstructionFormat format) {
+  const std::string name = ToString(format);
   const std::vector<std::string> clips = ClipIds();
-  const std::string root = test::MakeTempDir("recon_build");
+  const std::string root = test::MakeTempDir("recon_build_" + name);
   DriveDatasetOptions d;
   d.root = World();
   d.version = SyntheticDatasetOptions().version;
   const auto dataset = OpenDriveDataset(d);
   const PinholeCamera source =
       dataset->LoadClip(clips.front()).frames.front().camera;
-  for (ReconstructionFormat format : kOthers) {
-    for (const std::string& clip : clips) {
-      const Truth truth = ReadTruth(World() + "/monst3r/" + clip);
-      const std::string dir = root + "/in_" + ToString(format) + "/" + clip;
-      if (format == ReconstructionFormat::kVggt) {
-        VggtGridFixture(truth, dir, source);
-      } else if (format == ReconstructionFormat::kMegaSam) {
-        WriteMegaSam(truth, dir, true);  // the npz directly in the clip folder
-        fs::rename(dir + "/outputs/clip_sgd_cvd_hr.npz",
-                   dir + "/clip_sgd_cvd_hr.npz");
-      } else {
-        WriteFixture(format, truth, dir);
-      }
+  for (const std::string& clip : clips) {
+    const Truth truth = ReadTruth(World() + "/monst3r/" + clip);
+    const std::string dir = root + "/in/" + clip;
+    if (format == ReconstructionFormat::kVggt) {
+      VggtGridFixture(truth, dir, source);
+    } else if (format == ReconstructionFormat::kMegaSam) {
+      WriteMegaSam(truth, dir, true);  // the npz directly in the clip folder
+      fs::rename(dir + "/outputs/clip_sgd_cvd_hr.npz",
+                 dir + "/clip_sgd_cvd_hr.npz");
+    } else {
+      WriteFixture(format, truth, dir);
     }
   }
-  auto build = [&](const std::string& geometry, const std::string& in) {
-    BuildDatasetOptions o;
-    o.dataroot = World();
-    o.monst3r_root = in;
-    o.geometry = geometry;
-    o.out = root + "/out_" + geometry;
-    o.quiet = true;
-    o.threads = 2;
-    const BuildDatasetSummary s = BuildDataset(o);
-    std::printf("%s: %s\n", geometry.c_str(), s.BriefReport().c_str());
-    EXPECT_EQ(s.built, static_cast<int>(clips.size()))
-        << geometry << ": " << ReadAll(o.out + "/failures.jsonl");
-    return o.out;
-  };
-  const std::string ref_out = build("monst3r", World() + "/monst3r");
-  for (ReconstructionFormat format : kOthers) {
-    const std::string name = ToString(format);
-    const std::string out = build(name, root + "/in_" + name);
-    for (const std::string& clip : clips) {
-      const PairMeta ref = ReadPairMeta(ref_out + "/pairs/" + clip);
-      const PairMeta m = ReadPairMeta(out + "/pairs/" + clip);
-      EXPECT_EQ(m.geometry_source, name);
-      EXPECT_EQ(m.pose_units, "metres") << name;
-      double cov = 0, psnr = 0;
-      for (size_t t = 0; t < m.quality.coverage.size(); ++t) {
-        cov = std::max(
-            cov, std::abs(m.quality.coverage[t] - ref.quality.coverage[t]));
-        psnr = std::max(psnr, std::abs(m.quality.psnr_static[t].value_or(0) -
-                                       ref.quality.psnr_static[t].value_or(0)));
-      }
-      std::printf(
-          "%s %s vs monst3r: frame-0 coverage %.4f vs %.4f, static PSNR %.2f "
-          "vs %.2f dB; worst over 25 frames: |coverage| %.4f, |PSNR| %.2f dB\n",
-          name.c_str(), clip.c_str(), m.quality.coverage.front(),
-          ref.quality.coverage.front(),
-          m.quality.psnr_static.front().value_or(0),
-          ref.quality.psnr_static.front().value_or(0), cov, psnr);
-      // Same numbers (DA3, CUT3R, generic npz) but no dynamic masks (the
-      // tools write none, so the LiDAR fit also samples the moving cars:
-      // measured 1e-4 of coverage, 0.05 dB): within 0.002 and 0.2 dB.
-      // float16 depths (MegaSaM): within 0.002 and 0.2 dB too (measured
-      // 3e-4, 0.08 dB). VGGT's fixture is a nearest-neighbour resample of the
-      // 512x288 folder onto 518x294 (colours and depth move by up to half a
-      // pixel): measured 0.013 of coverage and 1.9-2.2 dB of static PSNR
-      // (frame 0 29.6 vs 31.4 dB); the grid mapping misregistered by one
-      // pixel either way loses 5.2-5.6 dB, so 3 dB separates the two.
-      const bool vggt = format == ReconstructionFormat::kVggt;
-      EXPECT_LE(cov, vggt ? 0.02 : 0.002) << name << " " << clip;
-      EXPECT_LE(psnr, vggt ? 3.0 : 0.2) << name << " " << clip;
+  const std::string& ref_out = Monst3rReferenceBuild();
+  const std::string out = BuildWithGeometry(name, root + "/in", root + "/out");
+  for (const std::string& clip : clips) {
+    const PairMeta ref = ReadPairMeta(ref_out + "/pairs/" + clip);
+    const PairMeta m = ReadPairMeta(out + "/pairs/" + clip);
+    EXPECT_EQ(m.geometry_source, name);
+    EXPECT_EQ(m.pose_units, "metres") << name;
+    ASSERT_EQ(m.quality.coverage.size(), ref.quality.coverage.size());
+    double cov = 0, psnr = 0;
+    for (size_t t = 0; t < m.quality.coverage.size(); ++t) {
+      cov = std::max(cov,
+                     std::abs(m.quality.coverage[t] - ref.quality.coverage[t]));
+      psnr = std::max(psnr, std::abs(m.quality.psnr_static[t].value_or(0) -
+                                     ref.quality.psnr_static[t].value_or(0)));
     }
+    std::printf(
+        "%s %s vs monst3r: frame-0 coverage %.4f vs %.4f, static PSNR %.2f "
+        "vs %.2f dB; worst over 25 frames: |coverage| %.4f, |PSNR| %.2f dB\n",
+        name.c_str(), clip.c_str(), m.quality.coverage.front(),
+        ref.quality.coverage.front(), m.quality.psnr_static.front().value_or(0),
+        ref.quality.psnr_static.front().value_or(0), cov, psnr);
+    // Same numbers (DA3, CUT3R, generic npz) but no dynamic masks (the
+    // tools write none, so the LiDAR fit also samples the moving cars:
+    // measured 1e-4 of coverage, 0.05 dB): within 0.002 and 0.2 dB.
+    // float16 depths (MegaSaM): within 0.002 and 0.2 dB too (measured
+    // 3e-4, 0.08 dB). VGGT's fixture is a nearest-neighbour resample of the
+    // 512x288 folder onto 518x294 (colours and depth move by up to half a
+    // pixel): measured 0.013 of coverage and 1.9-2.2 dB of static PSNR
+    // (frame 0 29.6 vs 31.4 dB); the grid mapping misregistered by one
+    // pixel either way loses 5.2-5.6 dB, so 3 dB separates the two.
+    const bool vggt = format == ReconstructionFormat::kVggt;
+    EXPECT_LE(cov, vggt ? 0.02 : 0.002) << name << " " << clip;
+    EXPECT_LE(psnr, vggt ? 3.0 : 0.2) << name << " " << clip;
   }
+}
+
+TEST(Reconstruction, BuilderBuildsVggtLikeMonst3r) {
+  ExpectBuildLikeMonst3r(ReconstructionFormat::kVggt);
+}
+TEST(Reconstruction, BuilderBuildsDepthAnything3LikeMonst3r) {
+  ExpectBuildLikeMonst3r(ReconstructionFormat::kDepthAnything3);
+}
+TEST(Reconstruction, BuilderBuildsCut3rLikeMonst3r) {
+  ExpectBuildLikeMonst3r(ReconstructionFormat::kCut3r);
+}
+TEST(Reconstruction, BuilderBuildsMegaSamLikeMonst3r) {
+  ExpectBuildLikeMonst3r(ReconstructionFormat::kMegaSam);
+}
+TEST(Reconstruction, BuilderBuildsGenericNpzLikeMonst3r) {
+  ExpectBuildLikeMonst3r(ReconstructionFormat::kGenericNpz);
 }
 
 }  // namespace
