@@ -131,20 +131,9 @@ int Run(Args& a) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto a = std::make_shared<Args>();
-  BuildDatasetOptions& o = a->options;
-  app.footer(
-      "Builds one pair folder per 25-frame CAM_FRONT clip: "
-      "OUT/pairs/<clip_id>/{gt.mp4, cond.mp4,\n"
-      "first_frame.png, boxes.json, meta.json, preview.png}, plus "
-      "OUT/manifest.jsonl,\n"
-      "OUT/failures.jsonl and OUT/report.html. Reruns skip finished pairs "
-      "(resume after a kill).\n"
-      "Under `mpirun -n K` (built with GEODRIVE_WITH_MPI) clips are split "
-      "across ranks and rank 0\n"
-      "merges. Exit codes: 0 ok, 2 bad input, 3 completed with failures, 130 "
-      "interrupted.");
+// Inputs and geometry: where clips come from and which scene source renders
+// them.
+void AddSourceOptions(CLI::App& app, BuildDatasetOptions& o) {
   app.add_option("--dataroot", o.dataroot,
                  "nuScenes root (holds <version>/, samples/, sweeps/)");
   app.add_option("--version", o.version, "Table folder, e.g. v1.0-mini")
@@ -196,29 +185,12 @@ CommandRunner Setup(CLI::App& app) {
                  "depth (the frame-0 camera scaled to it)")
       ->check(CLI::Range(16, 16384))
       ->capture_default_str();
-  app.add_option("--threads", o.threads, "Clips processed in parallel (1..256)")
-      ->check(ThreadCountValidator() & CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--shard", a->shard,
-                 "Process shard i of N (i/N), e.g. for Slurm job arrays")
-      ->capture_default_str();
-  app.add_option("--preset", o.preset,
-                 "paper (z-buffer, one pixel per point), footprint (z-buffer, "
-                 "points seen closer than at capture drawn over their "
-                 "magnified footprint) or geodrive-compat (released pipeline)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, RenderPreset>{
-          {"paper", RenderPreset::kPaper},
-          {"footprint", RenderPreset::kFootprint},
-          {"geodrive-compat", RenderPreset::kGeodriveCompat}}))
-      ->default_str("paper");
-  app.add_option("--edit-mode", o.edit_mode,
-                 "Dynamic editing from the clip's boxes: 3d, 2d, none")
-      ->transform(CLI::CheckedTransformer(
-          std::map<std::string, PairEditMode>{{"3d", PairEditMode::k3d},
-                                              {"2d", PairEditMode::k2d},
-                                              {"none", PairEditMode::kNone}}))
-      ->default_str("3d");
-  app.add_option("--clips", a->clips,
+}
+
+// Which clips, and how each pair is rendered and written.
+void AddPairOptions(CLI::App& app, Args& a) {
+  BuildDatasetOptions& o = a.options;
+  app.add_option("--clips", a.clips,
                  "Comma-separated clip ids (default: all clips)");
   app.add_option("--max-clips", o.max_clips,
                  "Stop after this many clips (0 = all)");
@@ -236,7 +208,7 @@ CommandRunner Setup(CLI::App& app) {
               {"all", ClipFrameSource::kAll},
               {"keyframes", ClipFrameSource::kKeyframes}}))
       ->default_str("all");
-  app.add_option("--size", a->size, "Output HxW")->capture_default_str();
+  app.add_option("--size", a.size, "Output HxW")->capture_default_str();
   app.add_option("--resize-mode", o.resize_mode,
                  "resize (plain, GeoDrive training) or center-crop (GeoDrive "
                  "inference)")
@@ -280,6 +252,46 @@ CommandRunner Setup(CLI::App& app) {
                "Keep pairs of OUT built with other content options (reported) "
                "instead of rebuilding them");
   app.add_flag("--quiet", o.quiet, "No progress output");
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto a = std::make_shared<Args>();
+  BuildDatasetOptions& o = a->options;
+  app.footer(
+      "Builds one pair folder per 25-frame CAM_FRONT clip: "
+      "OUT/pairs/<clip_id>/{gt.mp4, cond.mp4,\n"
+      "first_frame.png, boxes.json, meta.json, preview.png}, plus "
+      "OUT/manifest.jsonl,\n"
+      "OUT/failures.jsonl and OUT/report.html. Reruns skip finished pairs "
+      "(resume after a kill).\n"
+      "Under `mpirun -n K` (built with GEODRIVE_WITH_MPI) clips are split "
+      "across ranks and rank 0\n"
+      "merges. Exit codes: 0 ok, 2 bad input, 3 completed with failures, 130 "
+      "interrupted.");
+  AddSourceOptions(app, o);
+  app.add_option("--threads", o.threads, "Clips processed in parallel (1..256)")
+      ->check(ThreadCountValidator() & CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--shard", a->shard,
+                 "Process shard i of N (i/N), e.g. for Slurm job arrays")
+      ->capture_default_str();
+  app.add_option("--preset", o.preset,
+                 "paper (z-buffer, one pixel per point), footprint (z-buffer, "
+                 "points seen closer than at capture drawn over their "
+                 "magnified footprint) or geodrive-compat (released pipeline)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, RenderPreset>{
+          {"paper", RenderPreset::kPaper},
+          {"footprint", RenderPreset::kFootprint},
+          {"geodrive-compat", RenderPreset::kGeodriveCompat}}))
+      ->default_str("paper");
+  app.add_option("--edit-mode", o.edit_mode,
+                 "Dynamic editing from the clip's boxes: 3d, 2d, none")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, PairEditMode>{{"3d", PairEditMode::k3d},
+                                              {"2d", PairEditMode::k2d},
+                                              {"none", PairEditMode::kNone}}))
+      ->default_str("3d");
+  AddPairOptions(app, *a);
   app.add_option("--merge", a->merge,
                  "Merge the shard outputs in this folder (manifest, failures, "
                  "report) and exit");
