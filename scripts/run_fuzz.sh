@@ -79,6 +79,16 @@ for t in "${targets[@]}"; do
   echo "fuzz_$t: $result, $runs executions in $((cpu_ticks / ticks_per_second)) CPU-s (limit ${seconds}s $clock), coverage $cov, corpus $(ls "$dir/corpus" | wc -l) inputs"
   if [[ $result != ok ]]; then
     grep -m 5 -E 'ERROR|SUMMARY|==[0-9]+==|deadly|uncaught|Test unit written' "$log" | sed 's/^/  /' || true
+    # libFuzzer's per-input timeout is wall time: a run that was stopped (SIGSTOP, a suspended
+    # VM) reports a timeout for whatever input it was on. Replay each timeout once to tell.
+    for unit in "$dir"/findings/timeout-*; do
+      [[ -e "$unit" ]] || continue
+      if timeout "${FUZZ_TIMEOUT:-10}" "$bin" "$unit" >/dev/null 2>&1; then
+        echo "  $(basename "$unit"): replayed in under ${FUZZ_TIMEOUT:-10} s (the process was stalled, not the input)"
+      else
+        echo "  $(basename "$unit"): times out again on replay"
+      fi
+    done
   fi
 done
 exit $status
