@@ -365,8 +365,9 @@ VaeEncodeResult RunVaeEncode(const VaeEncodeOptions& o) {
 // ---- vae-decode ----
 
 struct VaeDecodeOptions {
-  // VAE preset (as vae-encode).
-  std::string config = "tiny";
+  // VAE preset (as vae-encode); empty: the latents' "config" metadata (what
+  // vae-encode, `sample` and `generate` write), else tiny.
+  std::string config;
   // VAE checkpoint; empty: random tiny weights from `seed`.
   std::string vae_weights;
   uint64_t seed = 0;
@@ -411,7 +412,7 @@ struct VaeDecodeOptions {
 };
 
 struct VaeDecodeResult {
-  std::string latents, vae, layout;
+  std::string latents, config, vae, layout;
   std::vector<int64_t> latents_shape, video_shape;
   double scale = 1, seconds = 0;
   std::vector<std::string> outputs;
@@ -420,12 +421,35 @@ struct VaeDecodeResult {
     std::ostringstream s;
     s << latents << ": " << ShapeToString(latents_shape) << " (" << layout
       << ") / " << scale << " -> video " << ShapeToString(video_shape)
-      << " (B, 3, F, H, W); VAE " << vae << "; wrote";
+      << " (B, 3, F, H, W); VAE " << config << ", " << vae << "; wrote";
     for (const std::string& out : outputs) s << " " << out;
     s << "; " << std::fixed << std::setprecision(2) << seconds << " s";
     return s.str();
   }
 };
+
+// The VAE preset vae-decode uses: --config, else the latents' "config"
+// metadata, else tiny. A --config naming another VAE than the metadata's is
+// an error (the latents would decode to noise).
+std::string DecodeConfigName(const VaeDecodeOptions& o,
+                             const std::map<std::string, std::string>& meta) {
+  const auto it = meta.find("config");
+  if (it == meta.end()) return o.config.empty() ? "tiny" : o.config;
+  std::string from_meta;
+  try {
+    from_meta = VaeConfigFor(it->second).name;
+  } catch (const InputError& e) {
+    ThrowInputError(o.latents, "metadata config '", it->second,
+                    "' names no VAE preset (", e.what(), "); give --config");
+  }
+  if (o.config.empty()) return it->second;
+  const std::string given = VaeConfigFor(o.config).name;
+  GEODRIVE_CHECK_INPUT(given == from_meta, o.latents, ": latents of the ",
+                       from_meta, " VAE (metadata config '", it->second,
+                       "'), but --config ", o.config, " is the ", given,
+                       " VAE");
+  return o.config;
+}
 
 // `dir` for --out-frames: created, and holding no frames of an earlier run
 // (they would mix with these).
@@ -503,7 +527,8 @@ VaeDecodeResult RunVaeDecode(const VaeDecodeOptions& o) {
         r.layout == kLatentLayoutBFCHW || r.layout == kLayoutBCFHW, o.latents,
         ": metadata layout '", r.layout, "' is not BFCHW or BCFHW");
   }
-  const VaeConfig c = VaeConfigFor(o.config);
+  r.config = DecodeConfigName(o, meta);
+  const VaeConfig c = VaeConfigFor(r.config);
   const int channel_dim = r.layout == kLatentLayoutBFCHW ? 2 : 1;
   GEODRIVE_CHECK_INPUT(z.dim() == 5 && z.size(channel_dim) == c.latent_channels,
                        o.latents, ": latents ", ShapeToString(z.sizes().vec()),
@@ -541,7 +566,7 @@ VaeDecodeResult RunVaeDecode(const VaeDecodeOptions& o) {
       CreateOutputDirectory(fs::absolute(out).parent_path().string());
   }
   const Weights w =
-      LoadVae(c, o.config, o.vae_weights, o.seed, o.runtime, &r.vae);
+      LoadVae(c, r.config, o.vae_weights, o.seed, o.runtime, &r.vae);
   at::Tensor video;
   {
     at::NoGradGuard no_grad;
@@ -556,7 +581,7 @@ VaeDecodeResult RunVaeDecode(const VaeDecodeOptions& o) {
                     {{kFormatKey, kVideoFormat},
                      {kLayoutKey, kLayoutBCFHW},
                      {"range", "unclamped (about [-1, 1])"},
-                     {"config", o.config},
+                     {"config", r.config},
                      {"vae", r.vae},
                      {"source", o.latents},
                      {"latents_divided_by", FormatDouble(r.scale)}});
@@ -635,7 +660,10 @@ CommandRunner SetupVaeDecode(CLI::App& cmd) {
       "--out-frames writes 16-bit PNGs, round((clamp(x, -1, 1) + 1) * "
       "32767.5); --out-video an 8-bit MP4.\nExit codes: 0 ok, 2 bad arguments "
       "or input.");
-  cmd.add_option("--config", o->config, kConfigHelp)->capture_default_str();
+  cmd.add_option("--config", o->config,
+                 std::string(kConfigHelp) +
+                     "; default: the latents' config metadata (vae-encode, "
+                     "sample and generate write it), else tiny");
   cmd.add_option("--vae-weights", o->vae_weights, kWeightsHelp);
   cmd.add_option("--seed", o->seed, "seed of the random tiny weights")
       ->capture_default_str();

@@ -101,6 +101,16 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
   };
   const std::string log = round_trip("a");
   EXPECT_NE(log.find("[1, 3, 17, 16, 24]"), std::string::npos) << log;
+  // Without --config, vae-decode takes the latents' config metadata: the
+  // same tensor as with --config tiny.
+  const std::string log_meta = RunCli("vae-decode --seed 3 --latents " + dir +
+                                      "/a/lat.safetensors --out-tensor " + dir +
+                                      "/meta_dec.safetensors");
+  EXPECT_NE(log_meta.find("VAE tiny, random tiny VAE (seed 3)"),
+            std::string::npos)
+      << log_meta;
+  EXPECT_TRUE(ReadBytes(dir + "/meta_dec.safetensors") ==
+              ReadBytes(dir + "/a/dec.safetensors"));
 
   // Latents: [B, F', C, h, w] = mean x 0.7, as generate stores them.
   const SafetensorsFile lat_file(dir + "/a/lat.safetensors");
@@ -274,6 +284,27 @@ TEST(VaeCommand, BadInputsExitTwoWithOneLineNamingTheInput) {
                    "/lat3.safetensors --out-tensor " + dir + "/d.safetensors",
                "lat3.safetensors: latents [1, 2, 3, 2, 2] are not BFCHW with "
                "C = 4");
+  // The metadata's config is the default VAE (here the 5B one, whose weights
+  // must be given); a --config naming another VAE is refused; a config that
+  // names no VAE preset says so.
+  SaveSafetensors(dir + "/lat5b.safetensors",
+                  {{"latents", at::zeros({1, 2, 16, 2, 2})}},
+                  {{"config", "cogvideox-5b-i2v"}});
+  const std::string dec5b = "vae-decode --latents " + dir +
+                            "/lat5b.safetensors --out-tensor " + dir +
+                            "/d.safetensors";
+  expect_error(dec5b, "--config cogvideox-5b-i2v: give --vae-weights");
+  expect_error(dec5b + " --config tiny-49",
+               "lat5b.safetensors: latents of the cogvideox-5b-i2v VAE "
+               "(metadata config 'cogvideox-5b-i2v'), but --config tiny-49 is "
+               "the tiny VAE");
+  SaveSafetensors(dir + "/latx.safetensors",
+                  {{"latents", at::zeros({1, 2, 4, 2, 2})}},
+                  {{"config", "nonsense"}});
+  expect_error("vae-decode --latents " + dir +
+                   "/latx.safetensors --out-tensor " + dir + "/d.safetensors",
+               "latx.safetensors: metadata config 'nonsense' names no VAE "
+               "preset");
   EXPECT_FALSE(fs::exists(dir + "/o.safetensors"));
   EXPECT_FALSE(fs::exists(dir + "/d.safetensors"));
 }
