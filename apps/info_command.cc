@@ -57,6 +57,12 @@ void PrintCloud(const std::string& path,
     std::cout << std::setprecision(0) << "  ring " << lo << " .. " << hi
               << "\n";
   }
+  if (cloud.HasFootprints()) {
+    auto [lo, hi] = range(cloud.footprints);
+    std::cout << std::setprecision(4) << "  capture footprints " << lo << " .. "
+              << hi << (cloud.footprint_u.empty() ? "" : ", with surface axes")
+              << "\n";
+  }
   std::cout << "  colors: " << (cloud.HasColors() ? "yes" : "no") << "\n";
 }
 

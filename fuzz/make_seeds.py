@@ -119,6 +119,15 @@ def ply_seeds():
                                 c[2], i) for i, (p, c) in enumerate(zip(PTS, RGB)))
     data += struct.pack("<Biii", 3, 0, 1, 2)
     out("ply", "mixed.ply", head2.encode() + data)
+    # Capture footprints with their axes, as WritePly stores them.
+    head3 = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+             "property float x\nproperty float y\nproperty float z\n"
+             "property float footprint\n" +
+             "".join("property float footprint_%s%s\n" % (a, c)
+                     for a in "uv" for c in "xyz") + "end_header\n")
+    data = b"".join(struct.pack("<10f", *p, 0.01 * (i + 1), 0.01, 0, 0, 0, 0.01, 0)
+                    for i, p in enumerate(PTS))
+    out("ply", "footprint.ply", head3.encode() + data)
 
 
 def lzf_literals(raw):

@@ -209,7 +209,21 @@ enum class Target : uint8_t {
   kInstanceId,
   kIntensity,
   kRing,
+  kFootprint,
+  // footprint_u (x, y, z), then footprint_v: six consecutive targets.
+  kFootprintUx,
+  kFootprintUy,
+  kFootprintUz,
+  kFootprintVx,
+  kFootprintVy,
+  kFootprintVz,
 };
+constexpr int kNumTargets = static_cast<int>(Target::kFootprintVz) + 1;
+
+// The footprint axes' PLY properties / PCD fields, in file order.
+constexpr const char* kFootprintAxisNames[] = {"footprint_ux", "footprint_uy",
+                                               "footprint_uz", "footprint_vx",
+                                               "footprint_vy", "footprint_vz"};
 
 // A PLY property or a PCD field.
 struct FieldSpec {
@@ -284,6 +298,20 @@ void AssignTargets(const std::string& path,
     FieldSpec* f = find(name);
     if (usable(f)) f->target = target;
   }
+  // Capture footprints as WritePly/WritePcd store them: `footprint`, and the
+  // footprint axes only as all six footprint_{u,v}{x,y,z} next to it.
+  FieldSpec* footprint = find("footprint");
+  if (!usable(footprint)) return;
+  footprint->target = Target::kFootprint;
+  FieldSpec* axes_found[6];
+  for (int k = 0; k < 6; ++k) {
+    axes_found[k] = find(kFootprintAxisNames[k]);
+    if (!usable(axes_found[k])) return;
+  }
+  for (int k = 0; k < 6; ++k) {
+    axes_found[k]->target =
+        static_cast<Target>(static_cast<int>(Target::kFootprintUx) + k);
+  }
 }
 
 // Raw pointers into the arrays of the cloud being read.
@@ -294,13 +322,38 @@ struct CloudColumns {
   int32_t* instance_ids = nullptr;
   float* intensity = nullptr;
   float* ring = nullptr;
+  float* footprints = nullptr;
+  float* footprint_u = nullptr;  // x y z per point
+  float* footprint_v = nullptr;
 };
+
+// The float column of a scalar target and, for the footprint axes, the
+// stride (3) and offset of its component.
+float* ScalarColumn(Target target, const CloudColumns& out, size_t* stride) {
+  *stride = 1;
+  switch (target) {
+    case Target::kConfidence:
+      return out.confidence;
+    case Target::kIntensity:
+      return out.intensity;
+    case Target::kRing:
+      return out.ring;
+    case Target::kFootprint:
+      return out.footprints;
+    default:
+      break;
+  }
+  const int k =
+      static_cast<int>(target) - static_cast<int>(Target::kFootprintUx);
+  *stride = 3;
+  return (k < 3 ? out.footprint_u : out.footprint_v) + k % 3;
+}
 
 // Sizes `cloud` for `n` points and the attributes `fields` map to.
 CloudColumns AllocateCloud(size_t n,
                            const std::vector<FieldSpec>& fields,
                            PointCloud* cloud) {
-  bool has[static_cast<int>(Target::kRing) + 1] = {};
+  bool has[kNumTargets] = {};
   for (const FieldSpec& f : fields) has[static_cast<int>(f.target)] = true;
   auto want = [&](Target t) { return has[static_cast<int>(t)]; };
   CloudColumns out;
@@ -325,6 +378,16 @@ CloudColumns AllocateCloud(size_t n,
   if (want(Target::kRing)) {
     cloud->ring.resize(n);
     out.ring = cloud->ring.data();
+  }
+  if (want(Target::kFootprint)) {
+    cloud->footprints.resize(n);
+    out.footprints = cloud->footprints.data();
+  }
+  if (want(Target::kFootprintUx)) {  // AssignTargets: all six or none
+    cloud->footprint_u.resize(n);
+    cloud->footprint_v.resize(n);
+    out.footprint_u = n ? cloud->footprint_u[0].data() : nullptr;
+    out.footprint_v = n ? cloud->footprint_v[0].data() : nullptr;
   }
   return out;
 }
@@ -425,14 +488,19 @@ void StoreValue(const std::string& path,
                           static_cast<int>(Target::kRed))] = ToChannel(v);
       return;
     case Target::kConfidence:
-      out.confidence[i] = static_cast<float>(v);
-      return;
     case Target::kIntensity:
-      out.intensity[i] = static_cast<float>(v);
-      return;
     case Target::kRing:
-      out.ring[i] = static_cast<float>(v);
+    case Target::kFootprint:
+    case Target::kFootprintUx:
+    case Target::kFootprintUy:
+    case Target::kFootprintUz:
+    case Target::kFootprintVx:
+    case Target::kFootprintVy:
+    case Target::kFootprintVz: {
+      size_t stride;
+      ScalarColumn(target, out, &stride)[stride * i] = static_cast<float>(v);
       return;
+    }
     case Target::kInstanceId:
       if (!ToInstanceId(v, &out.instance_ids[i]))
         ThrowInstanceIdRange(path, i, v);
@@ -483,13 +551,18 @@ void ConvertColumn(const std::string& path,
       return;
     case Target::kConfidence:
     case Target::kIntensity:
-    case Target::kRing: {
-      float* dst = (target == Target::kConfidence  ? out.confidence
-                    : target == Target::kIntensity ? out.intensity
-                                                   : out.ring) +
-                   first;
+    case Target::kRing:
+    case Target::kFootprint:
+    case Target::kFootprintUx:
+    case Target::kFootprintUy:
+    case Target::kFootprintUz:
+    case Target::kFootprintVx:
+    case Target::kFootprintVy:
+    case Target::kFootprintVz: {
+      size_t step;
+      float* dst = ScalarColumn(target, out, &step) + step * first;
       for (size_t i = 0; i < n; ++i)
-        dst[i] = ToFloat(Load<T, kSwap>(src + i * stride));
+        dst[step * i] = ToFloat(Load<T, kSwap>(src + i * stride));
       return;
     }
     case Target::kInstanceId: {
@@ -822,7 +895,13 @@ uint64_t ApplyNanPolicy(const std::string& path,
     KeepFlagged(keep, &cloud->instance_ids);
     KeepFlagged(keep, &cloud->intensity);
     KeepFlagged(keep, &cloud->ring);
+    KeepFlagged(keep, &cloud->footprints);
+    KeepFlagged(keep, &cloud->footprint_u);
+    KeepFlagged(keep, &cloud->footprint_v);
   }
+  // Footprints read from a file: finite, >= 0, axes finite (one line naming
+  // the file and the point otherwise).
+  if (cloud->HasFootprints()) cloud->Check(path);
   return dropped;
 }
 
@@ -1507,14 +1586,24 @@ uint32_t PackRgb(const Color3u8& c) {
 
 // The fields both writers emit, in order.
 struct OutField {
-  enum Kind { kXyz, kColor, kConfidence, kInstanceId, kIntensity, kRing };
+  enum Kind {
+    kXyz,
+    kColor,
+    kConfidence,
+    kInstanceId,
+    kIntensity,
+    kRing,
+    kFootprint,
+    kFootprintAxes
+  };
   Kind kind;
   size_t bytes;
 };
 
 // PLY: colour as 3 uchar, then confidence, instance_id, intensity, ring. PCD
 // (the order of the PCL-based writer before): colour packed in a uint32, then
-// intensity, confidence, instance_id, ring.
+// intensity, confidence, instance_id, ring. Both then footprint and the six
+// footprint axis values (u then v, x y z each) when the cloud has them.
 std::vector<OutField> OutFields(const PointCloud& cloud, bool pcd) {
   std::vector<OutField> fields = {{OutField::kXyz, 12}};
   if (cloud.HasColors()) fields.push_back({OutField::kColor, pcd ? 4u : 3u});
@@ -1523,6 +1612,9 @@ std::vector<OutField> OutFields(const PointCloud& cloud, bool pcd) {
   if (cloud.HasInstanceIds()) fields.push_back({OutField::kInstanceId, 4});
   if (!pcd && cloud.HasIntensity()) fields.push_back({OutField::kIntensity, 4});
   if (cloud.HasRing()) fields.push_back({OutField::kRing, 4});
+  if (cloud.HasFootprints()) fields.push_back({OutField::kFootprint, 4});
+  if (!cloud.footprint_u.empty())
+    fields.push_back({OutField::kFootprintAxes, 24});
   return fields;
 }
 
@@ -1559,6 +1651,13 @@ void AppendBinaryRecords(const PointCloud& cloud, bool pcd, std::string* out) {
           break;
         case OutField::kRing:
           std::memcpy(p, &cloud.ring[i], 4);
+          break;
+        case OutField::kFootprint:
+          std::memcpy(p, &cloud.footprints[i], 4);
+          break;
+        case OutField::kFootprintAxes:
+          std::memcpy(p, cloud.footprint_u[i].data(), 12);
+          std::memcpy(p + 12, cloud.footprint_v[i].data(), 12);
           break;
       }
       p += f.bytes;
@@ -1607,6 +1706,19 @@ void AppendAsciiRecords(const PointCloud& cloud, bool pcd, std::string* out) {
           *out += ' ';
           AppendFloat(cloud.ring[i], out);
           break;
+        case OutField::kFootprint:
+          *out += ' ';
+          AppendFloat(cloud.footprints[i], out);
+          break;
+        case OutField::kFootprintAxes:
+          for (const Eigen::Vector3f* axis :
+               {&cloud.footprint_u[i], &cloud.footprint_v[i]}) {
+            for (int k = 0; k < 3; ++k) {
+              *out += ' ';
+              AppendFloat((*axis)[k], out);
+            }
+          }
+          break;
       }
     }
     *out += '\n';
@@ -1647,6 +1759,11 @@ void WritePly(const std::string& path, const PointCloud& cloud, bool binary) {
   if (cloud.HasInstanceIds()) out += "property int instance_id\n";
   if (cloud.HasIntensity()) out += "property float intensity\n";
   if (cloud.HasRing()) out += "property float ring\n";
+  if (cloud.HasFootprints()) out += "property float footprint\n";
+  if (!cloud.footprint_u.empty()) {
+    for (const char* name : kFootprintAxisNames)
+      out += std::string("property float ") + name + "\n";
+  }
   out += "end_header\n";
   if (binary) {
     AppendBinaryRecords(cloud, /*pcd=*/false, &out);
@@ -1681,6 +1798,10 @@ void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
   if (cloud.HasConfidence()) add("confidence", "F");
   if (cloud.HasInstanceIds()) add("instance_id", "I");
   if (cloud.HasRing()) add("ring", "F");
+  if (cloud.HasFootprints()) add("footprint", "F");
+  if (!cloud.footprint_u.empty()) {
+    for (const char* name : kFootprintAxisNames) add(name, "F");
+  }
   const std::string n = std::to_string(cloud.size());
   // An empty cloud is written as ASCII, as PCL does not write empty binary
   // files.

@@ -23,8 +23,12 @@
 // `diffuse_red`..., else `r` `g` `b`; any numeric type, rounded and clamped
 // to 0..255) → colors; `confidence`, `intensity`, `ring` (any numeric type) →
 // float attributes; `instance_id` (any numeric type, must be in the int32
-// range). Everything else (normals, `alpha`, `label`, PCD `_` padding, lists,
-// other PLY elements such as faces) is skipped.
+// range); `footprint` (any numeric type, finite and >= 0) → footprints, and
+// with it `footprint_ux` `footprint_uy` `footprint_uz` `footprint_vx`
+// `footprint_vy` `footprint_vz` (all six, finite) → footprint_u / _v, as the
+// writers below store capture footprints. Everything else (normals, `alpha`,
+// `label`, PCD `_` padding, lists, other PLY elements such as faces) is
+// skipped.
 
 #include <cstdint>
 #include <string>
@@ -58,7 +62,8 @@ void WriteKittiVelodyneBin(const std::string& path, const PointCloud& cloud);
 PointCloud ReadPly(const std::string& path);
 // Binary little-endian (or ASCII, floats as %.9g, which round-trips float32):
 // float x y z, then uchar red green blue, float confidence, int instance_id,
-// float intensity, float ring for the attributes the cloud has.
+// float intensity, float ring, float footprint, float footprint_ux ...
+// footprint_vz for the attributes the cloud has.
 void WritePly(const std::string& path,
               const PointCloud& cloud,
               bool binary = true);
@@ -81,8 +86,9 @@ PointCloud ReadPcd(const std::string& path, PcdReadSummary* summary);
 // The files PCL 1.13 writes (byte for byte, less PCL's trailing zero padding
 // of binary files): VERSION 0.7, VIEWPOINT 0 0 0 1 0 0 0, fields x y z (F 4),
 // rgb (packed 0x00RRGGBB; F 4 in binary, U 4 and an integer in ASCII),
-// intensity (F 4), confidence (F 4), instance_id (I 4), ring (F 4) for the
-// attributes the cloud has; DATA binary, or ascii (floats as %.9g). An empty
+// intensity (F 4), confidence (F 4), instance_id (I 4), ring (F 4), then
+// footprint and footprint_ux ... footprint_vz (F 4) for the attributes the
+// cloud has; DATA binary, or ascii (floats as %.9g). An empty
 // cloud is written as DATA ascii. Deterministic and atomic.
 void WritePcd(const std::string& path,
               const PointCloud& cloud,

@@ -82,6 +82,13 @@ void ExpectSameCloud(const PointCloud& a, const PointCloud& b) {
   EXPECT_EQ(a.instance_ids, b.instance_ids);
   EXPECT_EQ(a.intensity, b.intensity);
   EXPECT_EQ(a.ring, b.ring);
+  EXPECT_EQ(a.footprints, b.footprints);
+  ASSERT_EQ(a.footprint_u.size(), b.footprint_u.size());
+  ASSERT_EQ(a.footprint_v.size(), b.footprint_v.size());
+  for (size_t i = 0; i < a.footprint_u.size(); ++i) {
+    ASSERT_EQ(a.footprint_u[i], b.footprint_u[i]) << i;
+    ASSERT_EQ(a.footprint_v[i], b.footprint_v[i]) << i;
+  }
 }
 
 std::pair<float, float> MinMax(const std::vector<float>& v) {
@@ -203,6 +210,64 @@ TEST(Ply, AsciiRoundTripKeepsEveryAttribute) {
   WritePly(path, cloud, /*binary=*/false);
   EXPECT_THAT(ReadAll(path), StartsWith("ply\nformat ascii 1.0\n"));
   ExpectSameCloud(cloud, ReadPly(path));  // %.9g round-trips float32 exactly
+}
+
+// Capture footprints (render/footprint.h) survive a file: a re-read cloud
+// renders with the same footprint splats. Every format, binary and ASCII,
+// with and without the footprint axes.
+TEST(PointCloudIo, FootprintsRoundTripInPlyAndPcd) {
+  const std::string dir = test::MakeTempDir("cloud_footprints");
+  PointCloud cloud = RandomCloud(300);
+  std::uniform_real_distribution<float> side(0.f, 0.5f), axis(-0.2f, 0.2f);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    // Zero footprints and zero axes mean "unknown": kept as written.
+    cloud.footprints.push_back(i % 7 == 0 ? 0.f : side(test::Rng()));
+    const bool unknown = i % 5 == 0;
+    cloud.footprint_u.emplace_back(
+        unknown ? Eigen::Vector3f::Zero()
+                : Eigen::Vector3f(axis(test::Rng()), axis(test::Rng()),
+                                  axis(test::Rng())));
+    cloud.footprint_v.emplace_back(
+        unknown ? Eigen::Vector3f::Zero()
+                : Eigen::Vector3f(axis(test::Rng()), axis(test::Rng()),
+                                  axis(test::Rng())));
+  }
+  PointCloud no_axes = cloud;
+  no_axes.footprint_u.clear();
+  no_axes.footprint_v.clear();
+  for (const PointCloud* c : {&cloud, &no_axes}) {
+    for (bool binary : {true, false}) {
+      WritePly(dir + "/c.ply", *c, binary);
+      ExpectSameCloud(*c, ReadPly(dir + "/c.ply"));
+      WritePcd(dir + "/c.pcd", *c, binary);
+      ExpectSameCloud(*c, ReadPcd(dir + "/c.pcd"));
+    }
+  }
+  WritePly(dir + "/c.ply", cloud, /*binary=*/false);
+  const std::string text = ReadAll(dir + "/c.ply");
+  EXPECT_THAT(text, HasSubstr("property float footprint\n"
+                              "property float footprint_ux\n"));
+  EXPECT_THAT(text, HasSubstr("property float footprint_vz\nend_header\n"));
+
+  // Five of the six axis properties: the axes are not read, the footprints
+  // are. A negative footprint in a file is an error naming it and the point.
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+      "property float y\nproperty float z\nproperty float footprint\n"
+      "property float footprint_ux\nproperty float footprint_uy\n"
+      "property float footprint_uz\nproperty float footprint_vx\n"
+      "property float footprint_vy\nend_header\n";
+  WriteAll(dir + "/five.ply", header +
+                                  "0 0 1 0.25 1 2 3 4 5\n"
+                                  "1 0 1 0 1 2 3 4 5\n");
+  const PointCloud five = ReadPly(dir + "/five.ply");
+  EXPECT_EQ(five.footprints, (std::vector<float>{0.25f, 0.f}));
+  EXPECT_TRUE(five.footprint_u.empty());
+  WriteAll(dir + "/neg.ply", header +
+                                 "0 0 1 0.25 1 2 3 4 5\n"
+                                 "1 0 1 -1 1 2 3 4 5\n");
+  EXPECT_THAT(ErrorOf([&] { ReadPly(dir + "/neg.ply"); }),
+              StartsWith(dir + "/neg.ply: point 1 has footprint -1"));
 }
 
 TEST(Ply, PositionsAndColorsOnly) {
@@ -797,7 +862,7 @@ TEST(Pcd, HostileDeclaredSizesFailFast) {
   };
   for (const auto& [name, error] : cases) {
     const std::string path = dir + "/" + name;  // (clang 14: no lambda
-                                                 // capture of bindings)
+                                                // capture of bindings)
     EXPECT_EQ(ErrorOf([&] { ReadPcd(path); }), path + error);
   }
   EXPECT_LT(Seconds(start), 0.5);
