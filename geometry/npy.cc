@@ -223,6 +223,23 @@ class HeaderDictParser {
 };
 
 // Checked element count and byte size of a shape; throws on overflow.
+// The element count of `shape`: 0 if any axis is 0 (then the other axes may
+// be anything a header allows, their product beyond int64), else the product,
+// which the readers have checked (CheckedByteSize); an overflow here is a
+// bug, reported as an error rather than wrapped.
+int64_t ShapeElements(const std::vector<int64_t>& shape) {
+  for (int64_t d : shape) {
+    if (d == 0) return 0;
+  }
+  int64_t n = 1;
+  for (int64_t d : shape) {
+    if (__builtin_mul_overflow(n, d, &n)) {
+      throw InputError("npy array: shape has more than 2^63 elements");
+    }
+  }
+  return n;
+}
+
 uint64_t CheckedByteSize(const std::string& path,
                          const std::vector<int64_t>& shape,
                          NpyDtype dtype) {
@@ -337,8 +354,7 @@ void Reorder(const uint8_t* src,
              size_t elem,
              bool fortran_to_c) {
   const size_t ndim = shape.size();
-  int64_t count = 1;
-  for (int64_t d : shape) count *= d;
+  const int64_t count = ShapeElements(shape);
   if (count == 0) return;
   // Fortran strides (in elements) of each axis.
   std::vector<int64_t> fstride(ndim, 1);
@@ -478,17 +494,9 @@ std::string NpyDtypeDescr(NpyDtype dtype) {
   return "?";
 }
 
-int64_t NpyHeader::NumElements() const {
-  int64_t n = 1;
-  for (int64_t d : shape) n *= d;
-  return n;
-}
+int64_t NpyHeader::NumElements() const { return ShapeElements(shape); }
 
-int64_t NpyArray::NumElements() const {
-  int64_t n = 1;
-  for (int64_t d : shape) n *= d;
-  return n;
-}
+int64_t NpyArray::NumElements() const { return ShapeElements(shape); }
 
 void NpyThrowDtypeMismatch(NpyDtype have, NpyDtype want) {
   throw InputError("npy array: dtype is " + NpyDtypeDescr(have) +

@@ -450,6 +450,29 @@ TEST(Npy, UnsupportedDtypesAreRejected) {
   EXPECT_THAT(ReadError(path), StartsWith(path + ": unsupported dtype"));
 }
 
+// Found by fuzz_npy (UBSan: signed overflow in NumElements): a zero axis
+// after axes whose product passes 2^63 is an empty array, in C and in
+// Fortran order, read as is and as float32.
+TEST(Npy, EmptyArrayWithHugeOtherAxes) {
+  const std::string dir = test::MakeTempDir("npy_empty_huge");
+  const std::vector<int64_t> shape = {4,   32, 64, 2,      364, 32, 64, 2,
+                                      366, 66, 2,  366632, 0,   34, 6};
+  for (const char* order : {"False", "True"}) {
+    WriteAll(dir + "/e.npy",
+             MakeNpy(std::string("{'descr': '<f8', 'fortran_order': ") + order +
+                         ", 'shape': (4, 32 ,64, 2, 364, 32 ,64, 2, 366,66, "
+                         "2, 366632 ,00000, 34, 6), }",
+                     ""));
+    const NpyArray a = ReadNpy(dir + "/e.npy");
+    EXPECT_EQ(a.shape, shape) << order;
+    EXPECT_EQ(a.NumElements(), 0) << order;
+    const NpyArray f = ReadNpyAsFloat32(dir + "/e.npy");
+    EXPECT_EQ(f.dtype, NpyDtype::kFloat32);
+    EXPECT_EQ(f.shape, shape);
+    EXPECT_TRUE(f.bytes.empty());
+  }
+}
+
 TEST(Npy, ShapeAndSizeOverflowAreRejected) {
   const std::string dir = test::MakeTempDir("npy_overflow");
   WriteAll(dir + "/a.npy", MakeNpy("{'descr': '<f8', 'fortran_order': False, "
