@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The sanitizer and fuzzing job (issue 19, docs/RELIABILITY.md): builds everything except the
 # LibTorch runtime with clang-14 under AddressSanitizer + UndefinedBehaviorSanitizer (every report
-# fatal) and libFuzzer coverage instrumentation in ./build-asan, runs the whole non-LibTorch test
-# suite there, then every fuzz target for FUZZ_SECONDS seconds on its seed corpus.
+# fatal; object-size left to ASan) in ./build-asan, the fuzzed readers' libraries also with
+# libFuzzer coverage instrumentation, runs the whole non-LibTorch test suite there, then every
+# fuzz target for FUZZ_SECONDS seconds on its seed corpus.
 #
 # Usage (as root on a fresh Debian bookworm machine):  bash scripts/run_sanitizers.sh
 # Environment: FUZZ_SECONDS (default 20 per target), BUILD_DIR (default build-asan).
