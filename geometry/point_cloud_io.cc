@@ -205,8 +205,9 @@ enum class Target : uint8_t {
   kRed,
   kGreen,
   kBlue,
-  kConfidence,
   kInstanceId,
+  // The float columns (ScalarColumn) from here on.
+  kConfidence,
   kIntensity,
   kRing,
   kFootprint,
@@ -219,6 +220,8 @@ enum class Target : uint8_t {
   kFootprintVz,
 };
 constexpr int kNumTargets = static_cast<int>(Target::kFootprintVz) + 1;
+
+constexpr bool IsFloatColumn(Target t) { return t >= Target::kConfidence; }
 
 // The footprint axes' PLY properties / PCD fields, in file order.
 constexpr const char* kFootprintAxisNames[] = {"footprint_ux", "footprint_uy",
@@ -473,6 +476,11 @@ void StoreValue(const std::string& path,
                 size_t i,
                 double v,
                 const CloudColumns& out) {
+  if (IsFloatColumn(target)) {
+    size_t stride;
+    ScalarColumn(target, out, &stride)[stride * i] = static_cast<float>(v);
+    return;
+  }
   switch (target) {
     case Target::kX:
     case Target::kY:
@@ -487,26 +495,13 @@ void StoreValue(const std::string& path,
       out.colors[3 * i + (static_cast<int>(target) -
                           static_cast<int>(Target::kRed))] = ToChannel(v);
       return;
-    case Target::kConfidence:
-    case Target::kIntensity:
-    case Target::kRing:
-    case Target::kFootprint:
-    case Target::kFootprintUx:
-    case Target::kFootprintUy:
-    case Target::kFootprintUz:
-    case Target::kFootprintVx:
-    case Target::kFootprintVy:
-    case Target::kFootprintVz: {
-      size_t stride;
-      ScalarColumn(target, out, &stride)[stride * i] = static_cast<float>(v);
-      return;
-    }
     case Target::kInstanceId:
       if (!ToInstanceId(v, &out.instance_ids[i]))
         ThrowInstanceIdRange(path, i, v);
       return;
     case Target::kPackedRgb:  // stored through StorePackedRgb
     case Target::kSkip:
+    default:  // the float columns, stored above
       return;
   }
 }
@@ -521,6 +516,13 @@ void ConvertColumn(const std::string& path,
                    size_t n,
                    Target target,
                    const CloudColumns& out) {
+  if (IsFloatColumn(target)) {
+    size_t step;
+    float* dst = ScalarColumn(target, out, &step) + step * first;
+    for (size_t i = 0; i < n; ++i)
+      dst[step * i] = ToFloat(Load<T, kSwap>(src + i * stride));
+    return;
+  }
   switch (target) {
     case Target::kX:
     case Target::kY:
@@ -549,22 +551,6 @@ void ConvertColumn(const std::string& path,
         }
       }
       return;
-    case Target::kConfidence:
-    case Target::kIntensity:
-    case Target::kRing:
-    case Target::kFootprint:
-    case Target::kFootprintUx:
-    case Target::kFootprintUy:
-    case Target::kFootprintUz:
-    case Target::kFootprintVx:
-    case Target::kFootprintVy:
-    case Target::kFootprintVz: {
-      size_t step;
-      float* dst = ScalarColumn(target, out, &step) + step * first;
-      for (size_t i = 0; i < n; ++i)
-        dst[step * i] = ToFloat(Load<T, kSwap>(src + i * stride));
-      return;
-    }
     case Target::kInstanceId: {
       int32_t* dst = out.instance_ids + first;
       for (size_t i = 0; i < n; ++i) {
@@ -575,6 +561,7 @@ void ConvertColumn(const std::string& path,
       return;
     }
     case Target::kSkip:
+    default:  // the float columns, stored above
       return;
   }
 }
