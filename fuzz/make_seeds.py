@@ -38,6 +38,12 @@ def npy_bytes(array, **kw):
 
 def npy_seeds():
     rng = np.random.default_rng(7)
+    # fuzz_npy's finding (docs/RELIABILITY.md): a zero axis after axes whose
+    # product passes 2^63; the header exactly as the fuzzer wrote it.
+    head = (b"{'descr': '<f8', 'fortran_order': False, 'shape': (4, 32 ,64, 2, "
+            b"364, 32 ,64, 2, 366,66, 2, 366632 ,00000, 34, 6), }  ")
+    out("npy", "regression-empty-huge-axes.npy",
+        b"\x93NUMPY\x01\x00" + len(head).to_bytes(2, "little") + head + b"  ")
     out("npy", "f4_2d.npy", npy_bytes(rng.random((4, 6), dtype=np.float32)))
     out("npy", "f8_3d.npy", npy_bytes(rng.random((3, 2, 3))))
     out("npy", "u1.npy", npy_bytes(np.arange(12, dtype=np.uint8).reshape(3, 4)))
