@@ -18,7 +18,7 @@
 namespace geodrive {
 namespace {
 
-struct Args {
+struct AlignArgs {
   std::string dataroot, version = "v1.0-mini", clip, monst3r, out;
   std::string sweep = "nearest";
   double max_gap_ms = 50;
@@ -26,7 +26,7 @@ struct Args {
   int stride = 6;
 };
 
-int Run(const Args& a) {
+int Run(const AlignArgs& a) {
   CreateOutputDirectory(a.out);  // an unusable --out fails before the fit
   DriveDatasetOptions dso;
   dso.root = a.dataroot;
@@ -83,8 +83,8 @@ int Run(const Args& a) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto a = std::make_shared<Args>();
+CommandRunner SetupAlignLidar(CLI::App& app) {
+  auto a = std::make_shared<AlignArgs>();
   app.footer(
       "Projects each frame's nearest LiDAR sweep into the camera (full "
       "nuScenes chain), samples\n"
@@ -122,6 +122,6 @@ GEODRIVE_REGISTER_COMMAND(
     align_lidar,
     "align-lidar",
     "Metric depth scale and trajectory of a MonST3R clip from LiDAR",
-    Setup);
+    SetupAlignLidar);
 
 }  // namespace geodrive

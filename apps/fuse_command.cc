@@ -9,6 +9,7 @@
 #include "geometry/monst3r.h"
 #include "geometry/point_cloud_io.h"
 #include "geometry/pointmap.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -23,11 +24,6 @@ struct FuseArgs {
   bool no_sor = false;
   bool ascii = false;
 };
-
-bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 int RunFuse(FuseArgs a) {
   GEODRIVE_CHECK_INPUT(!(a.static_only && a.dynamic_only),

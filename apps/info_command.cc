@@ -19,11 +19,6 @@
 namespace geodrive {
 namespace {
 
-bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 std::string ShapeString(const std::vector<int64_t>& shape) {
   std::ostringstream os;
   os << "(";

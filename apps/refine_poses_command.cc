@@ -27,11 +27,6 @@ struct RefineArgs {
   PointmapFilterOptions filter;
 };
 
-bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 int RunRefine(RefineArgs a) {
   a.options.loss = ParseRobustLoss(a.loss);
   a.options.Check();

@@ -11,6 +11,7 @@
 
 #include "diffusion/runtime_torch.h"
 #include "diffusion/safetensors.h"
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -72,10 +73,6 @@ void ForwardOptions::Check() const {
 
 namespace {
 
-bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 bool StartsWith(const std::string& s, const std::string& prefix) {
   return s.rfind(prefix, 0) == 0;
 }

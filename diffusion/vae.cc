@@ -5,6 +5,7 @@
 #include <string>
 #include <unordered_map>
 
+#include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -15,11 +16,6 @@ namespace {
 // Causal-conv caches by conv name (diffusers' nested conv_cache dicts): the
 // last kernel_t - 1 time-padded input frames of the previous frame batch.
 using ConvCache = std::unordered_map<std::string, at::Tensor>;
-
-bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 // CogVideoXCausalConv3d (pad_mode "first"): time padded on the left with the
 // cached frames of the previous batch, else the first frame repeated

@@ -32,7 +32,9 @@ void AddConv(std::vector<ParamSpec>* out,
   out->push_back({name + ".bias", {cout}});
 }
 
-void AddNorm(std::vector<ParamSpec>* out, const std::string& name, int64_t c) {
+void AddGroupNorm(std::vector<ParamSpec>* out,
+                  const std::string& name,
+                  int64_t c) {
   out->push_back({name + ".weight", {c}});
   out->push_back({name + ".bias", {c}});
 }
@@ -42,7 +44,7 @@ void AddSpatialNorm(std::vector<ParamSpec>* out,
                     const std::string& name,
                     int64_t c,
                     int64_t zc) {
-  AddNorm(out, name + ".norm_layer", c);
+  AddGroupNorm(out, name + ".norm_layer", c);
   AddConv(out, name + ".conv_y.conv", c, zc, {1, 1, 1});
   AddConv(out, name + ".conv_b.conv", c, zc, {1, 1, 1});
 }
@@ -59,8 +61,8 @@ void AddResnet(std::vector<ParamSpec>* out,
     AddSpatialNorm(out, name + ".norm1", cin, zc);
     AddSpatialNorm(out, name + ".norm2", cout, zc);
   } else {
-    AddNorm(out, name + ".norm1", cin);
-    AddNorm(out, name + ".norm2", cout);
+    AddGroupNorm(out, name + ".norm1", cin);
+    AddGroupNorm(out, name + ".norm2", cout);
   }
   AddConv(out, name + ".conv1.conv", cout, cin, {3, 3, 3});
   AddConv(out, name + ".conv2.conv", cout, cout, {3, 3, 3});
@@ -206,7 +208,7 @@ std::vector<ParamSpec> VaeParamSpecs(const VaeConfig& c) {
     AddResnet(&out, "encoder.mid_block.resnets." + std::to_string(j),
               ch[nb - 1], ch[nb - 1], 0);
   }
-  AddNorm(&out, "encoder.norm_out", ch[nb - 1]);
+  AddGroupNorm(&out, "encoder.norm_out", ch[nb - 1]);
   AddConv(&out, "encoder.conv_out.conv", 2 * lat, ch[nb - 1], {3, 3, 3});
   // Decoder (reversed channels, spatial norms on the latent).
   AddConv(&out, "decoder.conv_in.conv", ch[nb - 1], lat, {3, 3, 3});

@@ -91,7 +91,7 @@ void SetCaptureFootprints(const PinholeCamera& camera,
   // none: no axis.
   auto axis = [&](int x, int y, const Eigen::Vector3f& p, int dx, int dy,
                   Eigen::Vector3f* out) {
-    Eigen::Vector3f before, after;
+    Eigen::Vector3f before = Eigen::Vector3f::Zero(), after = before;
     const float db = at(x - dx, y - dy, &before);
     const float da = at(x + dx, y + dy, &after);
     const float z = p.z();

@@ -604,7 +604,6 @@ void RenderZBuffer(const PackedCloud& soa,
         // decisions are the per-point ones); the points that are not
         // magnified take their single pixel as in the radius-0 path, the
         // magnified ones (few) a box.
-        const float* fp = soa.footprint.data() + base;
         bool any_axis = false;
         if (!soa.footprint_axes.empty()) {
           const float* e = soa.footprint_axes.data() + 6 * base;

@@ -31,7 +31,7 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
   -DCMAKE_C_FLAGS_RELWITHDEBINFO="$flags" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$flags" \
   -DGEODRIVE_SANITIZE=address,undefined -DGEODRIVE_FUZZ=ON \
-  -DGEODRIVE_WITH_TORCH=OFF -DGEODRIVE_WITH_MPI=OFF -DGEODRIVE_BUILD_TESTS=ON
+  -DGEODRIVE_WITH_TORCH=OFF -DGEODRIVE_WITH_MPI=OFF -DGEODRIVE_BUILD_TESTS=ON -DCMAKE_UNITY_BUILD=ON
 cmake --build "$build"
 # Leaks are findings too; UBSan reports stop the process (and fail the test).
 export ASAN_OPTIONS=detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=0

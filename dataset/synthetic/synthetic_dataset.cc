@@ -24,7 +24,6 @@ namespace geodrive {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kPi = 3.14159265358979323846;
 
 // ---------------------------------------------------------------------------------------------
 // Deterministic tokens: 32 hex digits from (seed, kind, a, b, c).
@@ -79,7 +78,7 @@ double U01(uint64_t key) {
 double Normal(uint64_t key) {
   const double u1 = std::max(U01(key), 1e-300),
                u2 = U01(key ^ 0x5851F42D4C957F2Dull);
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2 * kPi * u2);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2 * M_PI * u2);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -358,7 +357,7 @@ Eigen::Quaterniond Perturb(const Eigen::Quaterniond& q,
                            uint64_t key) {
   if (sigma_deg <= 0) return q;
   const Eigen::Vector3d aa(Normal(key + 1), Normal(key + 2), Normal(key + 3));
-  return (q * QuaternionFromAngleAxis(aa * sigma_deg * kPi / 180.0))
+  return (q * QuaternionFromAngleAxis(aa * sigma_deg * M_PI / 180.0))
       .normalized();
 }
 
@@ -379,7 +378,7 @@ bool IsCameraChannel(const std::string& ch) { return ch.rfind("CAM_", 0) == 0; }
 Rigid3d SyntheticEgoFromSensor(const std::string& channel) {
   auto rz = [](double deg) {
     return Eigen::Quaterniond(
-        Eigen::AngleAxisd(deg * kPi / 180.0, Eigen::Vector3d::UnitZ()));
+        Eigen::AngleAxisd(deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()));
   };
   if (IsCameraChannel(channel)) {
     // CAM_FRONT of nuScenes (mmdet3d fixture), normalised; the others are yawed

@@ -37,7 +37,6 @@ std::string SyntheticWorldOptions::Validate() const {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kLaneWidth = 3.5;
 constexpr double kRoadHalfWidth = 7.0;  // two lanes per direction
 constexpr double kSidewalkWidth = 4.0;  // kerb to facade line
@@ -169,7 +168,8 @@ struct Track {
   // (x, y, heading) in the street frame.
   Eigen::Vector3d Pose(double t) const {
     const double s = s0 + dir * profile.Pos(t);
-    const double heading = (axis == 0 ? 0.0 : kPi / 2) + (dir < 0 ? kPi : 0.0);
+    const double heading =
+        (axis == 0 ? 0.0 : M_PI / 2) + (dir < 0 ? M_PI : 0.0);
     return axis == 0 ? Eigen::Vector3d(s, offset, heading)
                      : Eigen::Vector3d(offset, s, heading);
   }
@@ -330,24 +330,24 @@ struct SyntheticWorld::Impl {
                      y1 = -kLaneWidth / 2;
         const double u =
             std::clamp((p - lane_change_start) / lane_change_length, 0.0, 1.0);
-        const double y = y0 + (y1 - y0) * 0.5 * (1 - std::cos(kPi * u));
-        const double dy =
-            (u > 0 && u < 1)
-                ? (y1 - y0) * 0.5 * kPi * std::sin(kPi * u) / lane_change_length
-                : 0.0;
+        const double y = y0 + (y1 - y0) * 0.5 * (1 - std::cos(M_PI * u));
+        const double dy = (u > 0 && u < 1)
+                              ? (y1 - y0) * 0.5 * M_PI * std::sin(M_PI * u) /
+                                    lane_change_length
+                              : 0.0;
         return {p, y, std::atan(dy)};
       }
       case EgoManeuver::kLeftTurn: {
         const double y0 = -kLaneWidth / 2;
         if (p <= turn_start) return {p, y0, 0.0};
-        const double arc = kPi / 2 * kTurnRadius;
+        const double arc = M_PI / 2 * kTurnRadius;
         if (p <= turn_start + arc) {
           const double phi = (p - turn_start) / kTurnRadius;
           return {turn_start + kTurnRadius * std::sin(phi),
                   y0 + kTurnRadius - kTurnRadius * std::cos(phi), phi};
         }
         return {turn_start + kTurnRadius,
-                y0 + kTurnRadius + (p - turn_start - arc), kPi / 2};
+                y0 + kTurnRadius + (p - turn_start - arc), M_PI / 2};
       }
       case EgoManeuver::kBrakeAndStop:
       case EgoManeuver::kStraight:
@@ -448,7 +448,7 @@ void SyntheticWorld::Impl::Generate(const SyntheticWorldOptions& options,
   ground_tex = rng.U32();
 
   // Placement in the global frame.
-  const double yaw = rng.Uniform(-kPi, kPi);
+  const double yaw = rng.Uniform(-M_PI, M_PI);
   const Eigen::Vector3d offset(rng.Uniform(300, 1700), rng.Uniform(300, 1700),
                                0.0);
   *global_from_street = Rigid3d(
@@ -487,7 +487,7 @@ void SyntheticWorld::Impl::PlanEgo(const SyntheticWorldOptions& options,
       const double t_brake = std::max(0.0, t_arc - 2.5);
       ego_profile = SpeedProfile(v);
       ego_profile.Then(t_brake, -1.5).Then(2.0, 0.0);
-      const double arc_time = kPi / 2 * kTurnRadius / 5.0;
+      const double arc_time = M_PI / 2 * kTurnRadius / 5.0;
       ego_profile.Then(t_arc + arc_time + 0.2 - (t_brake + 2.0), 1.0)
           .Then(3.0, 0.0);
       turn_start =
@@ -1163,7 +1163,7 @@ LidarSweep SyntheticWorld::CastLidar(const Rigid3d& global_from_lidar,
 
   // Azimuth bins (street frame) holding the boxes whose footprint spans them.
   constexpr int kBins = 720;
-  const double bin_scale = kBins / (2 * kPi);
+  const double bin_scale = kBins / (2 * M_PI);
   std::vector<std::vector<int>> bins(kBins);
   std::vector<int> order;
   for (int i = 0; i < static_cast<int>(boxes.size()); ++i) {
@@ -1185,12 +1185,14 @@ LidarSweep SyntheticWorld::CastLidar(const Rigid3d& global_from_lidar,
         const Eigen::Vector3d ck =
             b.ToStreet((k & 1) ? b.hx : -b.hx, (k & 2) ? b.hy : -b.hy, 0) - o;
         double da = std::atan2(ck.y(), ck.x()) - ref;
-        while (da > kPi) da -= 2 * kPi;
-        while (da < -kPi) da += 2 * kPi;
+        while (da > M_PI) da -= 2 * M_PI;
+        while (da < -M_PI) da += 2 * M_PI;
         dmin = std::min(dmin, da), dmax = std::max(dmax, da);
       }
-      lo_bin = static_cast<int>(std::floor((ref + dmin + kPi) * bin_scale)) - 1;
-      hi_bin = static_cast<int>(std::floor((ref + dmax + kPi) * bin_scale)) + 1;
+      lo_bin =
+          static_cast<int>(std::floor((ref + dmin + M_PI) * bin_scale)) - 1;
+      hi_bin =
+          static_cast<int>(std::floor((ref + dmax + M_PI) * bin_scale)) + 1;
     }
     for (int k = lo_bin; k <= hi_bin; ++k)
       bins[((k % kBins) + kBins) % kBins].push_back(i);
@@ -1201,19 +1203,19 @@ LidarSweep SyntheticWorld::CastLidar(const Rigid3d& global_from_lidar,
   std::vector<Eigen::Vector3d> dirs_sensor(static_cast<size_t>(nr) * na);
 #pragma omp parallel for schedule(dynamic, 16)
   for (int a = 0; a < na; ++a) {
-    const double az = 2 * kPi * a / na;
+    const double az = 2 * M_PI * a / na;
     for (int r = 0; r < nr; ++r) {
       const double el =
           (lidar.min_elevation_deg +
            (nr > 1 ? (lidar.max_elevation_deg - lidar.min_elevation_deg) * r /
                          (nr - 1)
                    : 0.0)) *
-          kPi / 180.0;
+          M_PI / 180.0;
       const Eigen::Vector3d ds(std::cos(el) * std::cos(az),
                                std::cos(el) * std::sin(az), std::sin(el));
       const Eigen::Vector3d d = R * ds;
       int bin = static_cast<int>(
-          std::floor((std::atan2(d.y(), d.x()) + kPi) * bin_scale));
+          std::floor((std::atan2(d.y(), d.x()) + M_PI) * bin_scale));
       bin = std::clamp(bin, 0, kBins - 1);
       const std::vector<int>& ids = bins[bin];
       int hit, face = 0;

@@ -21,21 +21,6 @@ extern "C" {
 namespace geodrive {
 namespace {
 
-std::string AvError(int code) {
-  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
-  av_strerror(code, buf, sizeof(buf));
-  return buf;
-}
-
-// The libavformat/libavcodec error in words, with the library's own last
-// message when it logged one (e.g. "error while decoding MB 3 4").
-std::string Detail(int code) {
-  std::string s = AvError(code);
-  const std::string logged = TakeFfmpegLogMessage();
-  if (!logged.empty()) s += "; " + logged;
-  return s;
-}
-
 struct Decoder {
   AVFormatContext* fmt = nullptr;
   AVCodecContext* codec = nullptr;
@@ -77,8 +62,8 @@ void OpenContainer(const std::string& path, Decoder* d) {
   const std::string url = "file:" + path;
   const int r = avformat_open_input(&d->fmt, url.c_str(), nullptr, &options);
   av_dict_free(&options);
-  GEODRIVE_CHECK_INPUT(r >= 0, path,
-                       ": not a readable video (libavformat: ", Detail(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": not a readable video (libavformat: ",
+                       FfmpegErrorDetail(r), ")");
   const std::string name = d->fmt->iformat->name;
   const bool known = name.rfind("mov,", 0) == 0 || name == "avi" ||
                      name.rfind("matroska", 0) == 0;
@@ -104,8 +89,8 @@ void FindVideoStream(const std::string& path, Decoder* d) {
   }
   const int r = avformat_find_stream_info(fmt, options.data());
   for (AVDictionary*& o : options) av_dict_free(&o);
-  GEODRIVE_CHECK_INPUT(r >= 0, path,
-                       ": not a readable video (libavformat: ", Detail(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": not a readable video (libavformat: ",
+                       FfmpegErrorDetail(r), ")");
   d->stream = av_find_best_stream(fmt, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
   GEODRIVE_CHECK_INPUT(d->stream >= 0, path, ": has no video stream");
   AVStream* st = fmt->streams[d->stream];
@@ -148,8 +133,8 @@ void OpenDecoder(const std::string& path, Decoder* d) {
   d->codec = avcodec_alloc_context3(decoder);
   GEODRIVE_CHECK_INPUT(d->codec != nullptr, path, ": out of memory");
   int r = avcodec_parameters_to_context(d->codec, par);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": bad codec parameters (", Detail(r),
-                       ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": bad codec parameters (",
+                       FfmpegErrorDetail(r), ")");
   // One thread: the same frames on any machine. Errors the decoder can detect
   // stop the decode instead of being concealed.
   d->codec->thread_count = 1;
@@ -157,7 +142,7 @@ void OpenDecoder(const std::string& path, Decoder* d) {
   d->codec->err_recognition |= AV_EF_EXPLODE;
   r = avcodec_open2(d->codec, decoder, nullptr);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the '", decoder->name,
-                       "' decoder (", Detail(r), ")");
+                       "' decoder (", FfmpegErrorDetail(r), ")");
   d->packet = av_packet_alloc();
   d->frame = av_frame_alloc();
   d->bgr = av_frame_alloc();
@@ -235,7 +220,7 @@ void ReceiveFrames(const std::string& path,
     const int r = avcodec_receive_frame(d->codec, d->frame);
     if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return;
     GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data at frame ",
-                         frames->size(), " (", Detail(r), ")");
+                         frames->size(), " (", FfmpegErrorDetail(r), ")");
     GEODRIVE_CHECK_INPUT(d->frame->decode_error_flags == 0 &&
                              !(d->frame->flags & AV_FRAME_FLAG_CORRUPT),
                          path, ": corrupt video data at frame ", frames->size(),
@@ -278,7 +263,7 @@ std::vector<cv::Mat> DecodeVideoFileRgb(const std::string& path) {
     if (r == AVERROR_EOF) break;
     GEODRIVE_CHECK_INPUT(r >= 0, path,
                          ": truncated or unreadable video data after frame ",
-                         frames.size(), " (", Detail(r), ")");
+                         frames.size(), " (", FfmpegErrorDetail(r), ")");
     if (d.packet->stream_index != d.stream) {
       av_packet_unref(d.packet);
       continue;
@@ -293,14 +278,16 @@ std::vector<cv::Mat> DecodeVideoFileRgb(const std::string& path) {
     GEODRIVE_CHECK_INPUT(!corrupt, path, ": corrupt video packet after frame ",
                          frames.size());
     GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data after frame ",
-                         frames.size(), " (", Detail(r), ")");
+                         frames.size(), " (", FfmpegErrorDetail(r), ")");
     ReceiveFrames(path, &d, &frames);
   }
   GEODRIVE_CHECK_INPUT(d.fmt->pb == nullptr || d.fmt->pb->error == 0, path,
-                       ": read error (", Detail(d.fmt->pb->error), ")");
+                       ": read error (", FfmpegErrorDetail(d.fmt->pb->error),
+                       ")");
   const int r = avcodec_send_packet(d.codec, nullptr);  // drain
   GEODRIVE_CHECK_INPUT(r >= 0 || r == AVERROR_EOF, path,
-                       ": corrupt video data at the end (", Detail(r), ")");
+                       ": corrupt video data at the end (",
+                       FfmpegErrorDetail(r), ")");
   ReceiveFrames(path, &d, &frames);
   GEODRIVE_CHECK_INPUT(!frames.empty(), path,
                        ": empty video (no frame could be decoded)");

@@ -18,15 +18,6 @@ extern "C" {
 namespace geodrive {
 namespace {
 
-std::string Detail(int code) {
-  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
-  av_strerror(code, buf, sizeof(buf));
-  std::string s = buf;
-  const std::string logged = TakeFfmpegLogMessage();
-  if (!logged.empty()) s += "; " + logged;
-  return s;
-}
-
 // The codec a FourCC names: the container's own tags first, then the AVI and
 // MOV tables (as OpenCV's writer looks it up).
 AVCodecID CodecForFourcc(const AVOutputFormat* format,
@@ -87,11 +78,13 @@ void FfmpegVideoWriter::Impl::Drain() {
   while (true) {
     const int r = avcodec_receive_packet(codec, packet);
     if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return;
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding failed (", Detail(r), ")");
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding failed (",
+                         FfmpegErrorDetail(r), ")");
     av_packet_rescale_ts(packet, codec->time_base, stream->time_base);
     packet->stream_index = stream->index;
     const int w = av_interleaved_write_frame(fmt, packet);
-    GEODRIVE_CHECK_INPUT(w >= 0, path, ": writing failed (", Detail(w), ")");
+    GEODRIVE_CHECK_INPUT(w >= 0, path, ": writing failed (",
+                         FfmpegErrorDetail(w), ")");
   }
 }
 
@@ -118,8 +111,8 @@ FfmpegVideoWriter::FfmpegVideoWriter(const std::string& path,
   int r =
       avformat_alloc_output_context2(&m.fmt, nullptr, nullptr, m.tmp.c_str());
   GEODRIVE_CHECK_INPUT(r >= 0 && m.fmt, path,
-                       ": no video container for this extension (", Detail(r),
-                       ")");
+                       ": no video container for this extension (",
+                       FfmpegErrorDetail(r), ")");
   const AVCodecID id = CodecForFourcc(m.fmt->oformat, fourcc);
   const AVCodec* codec =
       id == AV_CODEC_ID_NONE ? nullptr : avcodec_find_encoder(id);
@@ -147,20 +140,21 @@ FfmpegVideoWriter::FfmpegVideoWriter(const std::string& path,
     c->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
   r = avcodec_open2(c, codec, nullptr);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the '", codec->name,
-                       "' encoder (", Detail(r), ")");
+                       "' encoder (", FfmpegErrorDetail(r), ")");
   r = avcodec_parameters_from_context(m.stream->codecpar, c);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (", Detail(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (",
+                       FfmpegErrorDetail(r), ")");
   m.stream->time_base = c->time_base;
   m.stream->avg_frame_rate = rate;
   m.fmt->flags |= AVFMT_FLAG_BITEXACT;
   r = avio_open(&m.fmt->pb, m.tmp.c_str(), AVIO_FLAG_WRITE);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (", Detail(r),
-                       ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (",
+                       FfmpegErrorDetail(r), ")");
   m.io_open = true;
   r = avformat_write_header(m.fmt, nullptr);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot write the header of a '",
-                       codec->name, "' video in this container (", Detail(r),
-                       ")");
+                       codec->name, "' video in this container (",
+                       FfmpegErrorDetail(r), ")");
   m.packet = av_packet_alloc();
   m.rgb = av_frame_alloc();
   GEODRIVE_CHECK_INPUT(m.packet && m.rgb, path, ": out of memory");
@@ -212,7 +206,7 @@ void FfmpegVideoWriter::Write(const cv::Mat& frame_rgb) {
   out->pts = m.frames;
   const int r = avcodec_send_frame(m.codec, out);
   GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": encoding frame ", m.frames,
-                       " failed (", Detail(r), ")");
+                       " failed (", FfmpegErrorDetail(r), ")");
   m.Drain();
   ++m.frames;
 }
@@ -224,8 +218,8 @@ void FfmpegVideoWriter::Finish() {
   avcodec_send_frame(m.codec, nullptr);
   m.Drain();
   const int r = av_write_trailer(m.fmt);
-  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": cannot finish the video (", Detail(r),
-                       ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": cannot finish the video (",
+                       FfmpegErrorDetail(r), ")");
   avio_closep(&m.fmt->pb);
   m.io_open = false;
   CommitTemporaryFile(m.tmp, m.path);

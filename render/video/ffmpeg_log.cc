@@ -1,6 +1,7 @@
 #include "render/video/ffmpeg_log.h"
 
 extern "C" {
+#include <libavutil/error.h>
 #include <libavutil/log.h>
 }
 
@@ -42,6 +43,19 @@ void InstallFfmpegLogCapture() {
 std::string TakeFfmpegLogMessage() {
   std::string s;
   s.swap(last_message);
+  return s;
+}
+
+std::string FfmpegError(int code) {
+  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
+  av_strerror(code, buf, sizeof(buf));
+  return buf;
+}
+
+std::string FfmpegErrorDetail(int code) {
+  std::string s = FfmpegError(code);
+  const std::string logged = TakeFfmpegLogMessage();
+  if (!logged.empty()) s += "; " + logged;
   return s;
 }
 

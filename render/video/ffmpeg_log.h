@@ -13,5 +13,11 @@ void InstallFfmpegLogCapture();
 // The last error-level FFmpeg message logged on this thread since the previous
 // call (one line, at most 200 characters), or "" -- and forgets it.
 std::string TakeFfmpegLogMessage();
+// An FFmpeg error code in words (av_strerror).
+std::string FfmpegError(int code);
+// FfmpegError(code) followed by the library's own last message when it logged
+// one (e.g. "Invalid data found when processing input; error while decoding
+// MB 3 4"); takes that message (TakeFfmpegLogMessage).
+std::string FfmpegErrorDetail(int code);
 
 }  // namespace geodrive

@@ -1,5 +1,7 @@
 #include "render/video/h264.h"
 
+#include "render/video/ffmpeg_log.h"
+
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
@@ -31,12 +33,6 @@ bool HasH264Encoder() {
 
 namespace {
 
-std::string AvError(int code) {
-  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
-  av_strerror(code, buf, sizeof(buf));
-  return buf;
-}
-
 struct Cleanup {
   AVFormatContext* fmt = nullptr;
   AVCodecContext* codec = nullptr;
@@ -58,11 +54,13 @@ void Drain(Cleanup& c, AVStream* stream, const std::string& path) {
   while (true) {
     const int r = avcodec_receive_packet(c.codec, c.packet);
     if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return;
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding failed (", AvError(r), ")");
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": encoding failed (", FfmpegError(r),
+                         ")");
     av_packet_rescale_ts(c.packet, c.codec->time_base, stream->time_base);
     c.packet->stream_index = stream->index;
     const int w = av_interleaved_write_frame(c.fmt, c.packet);
-    GEODRIVE_CHECK_INPUT(w >= 0, path, ": writing failed (", AvError(w), ")");
+    GEODRIVE_CHECK_INPUT(w >= 0, path, ": writing failed (", FfmpegError(w),
+                         ")");
   }
 }
 
@@ -97,7 +95,7 @@ H264Mp4Writer::H264Mp4Writer(const std::string& path,
   av_log_set_level(AV_LOG_ERROR);
   int r = avformat_alloc_output_context2(&c.fmt, nullptr, "mp4", m.tmp.c_str());
   GEODRIVE_CHECK_INPUT(r >= 0 && c.fmt, path, ": cannot create an mp4 muxer (",
-                       AvError(r), ")");
+                       FfmpegError(r), ")");
   const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
   GEODRIVE_CHECK_INPUT(codec, path,
                        ": this FFmpeg has no libx264 H.264 encoder");
@@ -124,22 +122,23 @@ H264Mp4Writer::H264Mp4Writer(const std::string& path,
              "threads=1:sync-lookahead=0:deterministic=1:mbtree=0", 0);
   r = avcodec_open2(c.codec, codec, nullptr);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open the H.264 encoder (",
-                       AvError(r), ")");
+                       FfmpegError(r), ")");
   r = avcodec_parameters_from_context(m.stream->codecpar, c.codec);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (", AvError(r), ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": codec parameters (", FfmpegError(r),
+                       ")");
   m.stream->time_base = c.codec->time_base;
   m.stream->avg_frame_rate = rate;
   c.fmt->flags |= AVFMT_FLAG_BITEXACT;
   r = avio_open(&c.fmt->pb, m.tmp.c_str(), AVIO_FLAG_WRITE);
-  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (", AvError(r),
-                       ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot open for writing (",
+                       FfmpegError(r), ")");
   c.io_open = true;
   AVDictionary* mux_options = nullptr;
   av_dict_set(&mux_options, "movflags", "+faststart", 0);
   r = avformat_write_header(c.fmt, &mux_options);
   av_dict_free(&mux_options);
   GEODRIVE_CHECK_INPUT(r >= 0, path, ": cannot write the mp4 header (",
-                       AvError(r), ")");
+                       FfmpegError(r), ")");
   c.packet = av_packet_alloc();
   cv::Mat padded_storage(m.eh + 2, m.ew, CV_8UC3, cv::Scalar(0, 0, 0));
   m.padded = padded_storage(cv::Rect(0, 0, m.ew, m.eh)).clone();
@@ -204,7 +203,7 @@ void H264Mp4Writer::Write(const cv::Mat& frame_rgb) {
   c.frame->pts = static_cast<int64_t>(m.frames);
   r = avcodec_send_frame(c.codec, c.frame);
   GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": encoding frame ", m.frames,
-                       " failed (", AvError(r), ")");
+                       " failed (", FfmpegError(r), ")");
   Drain(c, m.stream, m.path);
   ++m.frames;
 }
@@ -217,8 +216,8 @@ void H264Mp4Writer::Finish() {
   avcodec_send_frame(c.codec, nullptr);
   Drain(c, m.stream, m.path);
   const int r = av_write_trailer(c.fmt);
-  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": cannot finish the mp4 (", AvError(r),
-                       ")");
+  GEODRIVE_CHECK_INPUT(r >= 0, m.path, ": cannot finish the mp4 (",
+                       FfmpegError(r), ")");
   avio_closep(&c.fmt->pb);
   c.io_open = false;
   CommitTemporaryFile(m.tmp, m.path);

@@ -22,13 +22,6 @@ namespace fs = std::filesystem;
 using test::GeodriveBinary;
 using test::RunCommand;
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream os;
-  os << in.rdbuf();
-  return os.str();
-}
-
 std::map<std::string, std::string> OutputFiles(const std::string& out) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(out)) {
@@ -39,7 +32,7 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
     // Shard logs are merged into manifest.jsonl / failures.jsonl; compare
     // those.
     if (rel.find(".shard-") != std::string::npos) continue;
-    files[rel] = ReadAll(e.path().string());
+    files[rel] = test::ReadFile(e.path().string());
   }
   return files;
 }
@@ -72,7 +65,7 @@ const std::string& Reference() {
 }
 
 TEST(BuildDatasetCli, ReferenceRunBuildsEveryMonst3rClip) {
-  const std::string manifest = ReadAll(Reference() + "/manifest.jsonl");
+  const std::string manifest = test::ReadFile(Reference() + "/manifest.jsonl");
   EXPECT_EQ(std::count(manifest.begin(), manifest.end(), '\n'), 3)
       << manifest;  // 0, 24, 48
   EXPECT_TRUE(fs::exists(Reference() + "/report.html"));
@@ -84,7 +77,7 @@ TEST(BuildDatasetCli, KillMinus9AndResumeGivesIdenticalOutput) {
   ASSERT_EQ(RunCommand(GeodriveBinary() + BuildArgs(out) +
                        " > /dev/null 2>&1 & echo $! > " + pidfile),
             0);
-  const std::string pid = ReadAll(pidfile);
+  const std::string pid = test::ReadFile(pidfile);
   // Wait until the first pair is committed (or the temporary folder of the
   // second appears).
   bool killed = false;
@@ -130,7 +123,7 @@ TEST(BuildDatasetCli, SigtermStopsCleanlyAndResumes) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     if (fs::exists(out + "/pairs") && !fs::is_empty(out + "/pairs")) {
       // The background subshell's child is the builder.
-      RunCommand("pkill -TERM -P " + ReadAll(pidfile));
+      RunCommand("pkill -TERM -P " + test::ReadFile(pidfile));
       signalled = true;
     }
   }
@@ -139,7 +132,7 @@ TEST(BuildDatasetCli, SigtermStopsCleanlyAndResumes) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  const std::string rc = ReadAll(rcfile);
+  const std::string rc = test::ReadFile(rcfile);
   int committed = 0, temporary = 0;
   for (const auto& e : fs::directory_iterator(out + "/pairs")) {
     (e.path().filename().string().rfind(".tmp-", 0) == 0 ? temporary
@@ -198,10 +191,10 @@ TEST(BuildDatasetCli, FailuresGiveExitCodeThreeAndAreRecorded) {
                             &log);
   EXPECT_EQ(rc, 3) << log;
   EXPECT_NE(log.find("completed with failures"), std::string::npos) << log;
-  const std::string failures = ReadAll(out + "/failures.jsonl");
+  const std::string failures = test::ReadFile(out + "/failures.jsonl");
   EXPECT_NE(failures.find("scene-0001_0024"), std::string::npos) << failures;
   EXPECT_NE(failures.find("pred_traj.txt"), std::string::npos) << failures;
-  const std::string manifest = ReadAll(out + "/manifest.jsonl");
+  const std::string manifest = test::ReadFile(out + "/manifest.jsonl");
   EXPECT_EQ(std::count(manifest.begin(), manifest.end(), '\n'), 2) << manifest;
 }
 
@@ -249,7 +242,8 @@ TEST(BuildDatasetCli, RoundTripClipsUpstreamLayoutAndExport) {
     const std::string id = e.path().filename().string();
     ASSERT_TRUE(index.count(id)) << id << " not in clips.jsonl";
     // The clip's own JSON names its 25 frames, in order, and links them.
-    const std::string clip_json = ReadAll(base + "/clips/" + id + "/clip.json");
+    const std::string clip_json =
+        test::ReadFile(base + "/clips/" + id + "/clip.json");
     EXPECT_NE(clip_json.find("\"upstream_sample\""), std::string::npos);
     EXPECT_TRUE(fs::is_symlink(base + "/clips/" + id + "/images/00024.jpg"));
     char sample[32];
@@ -274,8 +268,8 @@ TEST(BuildDatasetCli, RoundTripClipsUpstreamLayoutAndExport) {
   // options hash, not the renders).
   for (const auto& e : fs::directory_iterator(Reference() + "/pairs")) {
     const std::string id = e.path().filename().string();
-    EXPECT_EQ(ReadAll(out + "/pairs/" + id + "/cond.mp4"),
-              ReadAll(e.path().string() + "/cond.mp4"))
+    EXPECT_EQ(test::ReadFile(out + "/pairs/" + id + "/cond.mp4"),
+              test::ReadFile(e.path().string() + "/cond.mp4"))
         << id;
   }
   ASSERT_EQ(RunCommand(std::string(test::kDebianPython) +
@@ -305,7 +299,7 @@ TEST(BuildDatasetCli, FailuresLogThatCannotBeWrittenFailsTheRunCleanly) {
   EXPECT_NE(log.find("failures.jsonl: append failed"), std::string::npos)
       << log;
   EXPECT_NE(log.find("log write errors 1"), std::string::npos) << log;
-  const std::string manifest = ReadAll(out + "/manifest.jsonl");
+  const std::string manifest = test::ReadFile(out + "/manifest.jsonl");
   EXPECT_EQ(std::count(manifest.begin(), manifest.end(), '\n'), 2) << manifest;
 }
 
@@ -314,14 +308,14 @@ TEST(RefinePosesCli, RefusesToWriteIntoItsInputFolder) {
   const std::string dir = test::MakeTempDir("cli_refine_inplace");
   fs::copy(World() + "/monst3r/scene-0001_0000", dir,
            fs::copy_options::recursive);
-  const std::string before = ReadAll(dir + "/pred_traj.txt");
+  const std::string before = test::ReadFile(dir + "/pred_traj.txt");
   std::string log;
   const int rc = RunCommand(GeodriveBinary() + " refine-poses --monst3r " +
                                 dir + " --out " + dir + "/pred_traj.txt",
                             &log);
   EXPECT_EQ(rc, 2) << log;
   EXPECT_NE(log.find("is inside the input folder"), std::string::npos) << log;
-  EXPECT_EQ(ReadAll(dir + "/pred_traj.txt"), before);
+  EXPECT_EQ(test::ReadFile(dir + "/pred_traj.txt"), before);
 }
 
 // Issue 19: `fuse --out` inside the MonST3R folder is refused the same way (a

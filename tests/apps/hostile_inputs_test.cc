@@ -47,16 +47,12 @@ CliRun Geodrive(const std::string& args) {
   return r;
 }
 
-int Lines(const std::string& text) {
-  return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
-}
-
 // Exit 2, exactly one line, naming `path` and containing `what`.
 void ExpectOneLineError(const CliRun& r,
                         const std::string& path,
                         const std::string& what) {
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(Lines(r.output), 1) << r.output;
+  EXPECT_EQ(test::CountLines(r.output), 1) << r.output;
   EXPECT_NE(r.output.find(path), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(what), std::string::npos) << r.output;
 }
@@ -99,7 +95,7 @@ TEST(HostileSizes, PcdDeclaring50MillionPoints) {
   WriteText(dir + "/big_c.pcd", compressed + Zeros(80 * 1024));
   const CliRun r = Geodrive("info " + dir + "/big_c.pcd");
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(Lines(r.output), 1) << r.output;
+  EXPECT_EQ(test::CountLines(r.output), 1) << r.output;
 }
 
 // A .npy whose header declares 100000 x 100000 float32 (40 GB) over 80 KB, and
@@ -160,7 +156,7 @@ TEST(HostileSizes, ImagesDeclaringHugeSizesAreRefusedFromTheHeader) {
   WriteText(dir + "/huge.png", png);
   const CliRun r = Geodrive("info " + dir + "/huge.png");
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(Lines(r.output), 1) << r.output;
+  EXPECT_EQ(test::CountLines(r.output), 1) << r.output;
   EXPECT_NE(r.output.find(dir + "/huge.png"), std::string::npos) << r.output;
 }
 

@@ -28,24 +28,11 @@ int Info(const std::string& path, std::string* output) {
   return RunCommand(GeodriveBinary() + " info '" + path + "'", output);
 }
 
-int Lines(const std::string& text) {
-  return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
-}
-
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteAll(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
 // Bad input: exit 2, exactly one line, naming the file.
 void ExpectOneLineError(const std::string& path, const std::string& problem) {
   std::string out;
   EXPECT_EQ(Info(path, &out), 2) << out;
-  EXPECT_EQ(Lines(out), 1) << out;
+  EXPECT_EQ(test::CountLines(out), 1) << out;
   EXPECT_THAT(out, HasSubstr(path)) << out;
   EXPECT_THAT(out, HasSubstr(problem)) << out;
 }
@@ -73,21 +60,21 @@ TEST(InfoCommand, MissingNpyExitsTwoWithOneLine) {
   // Relative path, as a user would type it.
   std::string out;
   EXPECT_EQ(RunCommand(GeodriveBinary() + " info missing.npy", &out), 2);
-  EXPECT_EQ(Lines(out), 1) << out;
+  EXPECT_EQ(test::CountLines(out), 1) << out;
   EXPECT_THAT(out, HasSubstr("missing.npy"));
 }
 
 TEST(InfoCommand, TruncatedNpyExitsTwoWithOneLine) {
   const std::string path = test::MakeTempDir("info_truncated") + "/frame.npy";
   WriteNpy(path, NpyArray::Zeros(NpyDtype::kFloat32, {288, 512}));
-  WriteAll(path, ReadAll(path).substr(0, 128 + 100));
+  test::WriteFile(path, test::ReadFile(path).substr(0, 128 + 100));
   ExpectOneLineError(
       path, "truncated: header says 589824 bytes of data, file has 100");
 }
 
 TEST(InfoCommand, NpyWithBadHeaderExitsTwoWithOneLine) {
   const std::string path = test::MakeTempDir("info_bad_npy") + "/conf_0.npy";
-  WriteAll(path, "not numpy at all");
+  test::WriteFile(path, "not numpy at all");
   ExpectOneLineError(path, "not a .npy file");
 }
 
@@ -110,34 +97,36 @@ TEST(InfoCommand, JpegPrintsSizeAndTruncatedJpegFails) {
   ASSERT_EQ(Info(jpeg, &out), 0) << out;
   EXPECT_THAT(out, HasSubstr("image 1600x900, 3 channel(s), 8-bit"));
   const std::string cut = test::MakeTempDir("info_jpeg") + "/cut.jpg";
-  const std::string bytes = ReadAll(jpeg);
-  WriteAll(cut, bytes.substr(0, bytes.size() / 2));
+  const std::string bytes = test::ReadFile(jpeg);
+  test::WriteFile(cut, bytes.substr(0, bytes.size() / 2));
   ExpectOneLineError(cut, "truncated");
 }
 
 TEST(InfoCommand, BrokenPointCloudsExitTwoWithOneLine) {
   const std::string dir = test::MakeTempDir("info_clouds");
-  WriteAll(dir + "/scan.pcd",
-           "hello\n");  // PCL 1.13 itself would crash on this
+  test::WriteFile(dir + "/scan.pcd",
+                  "hello\n");  // PCL 1.13 itself would crash on this
   ExpectOneLineError(dir + "/scan.pcd", "malformed PCD header");
-  WriteAll(dir + "/mesh.ply",
-           "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
-           "property float y\nproperty float z\nend_header\n1 2 3\n");
+  test::WriteFile(dir + "/mesh.ply",
+                  "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                  "property float y\nproperty float z\nend_header\n1 2 3\n");
   ExpectOneLineError(dir + "/mesh.ply", "truncated");
-  WriteAll(dir + "/sweep.pcd.bin", std::string(21, '\0'));
+  test::WriteFile(dir + "/sweep.pcd.bin", std::string(21, '\0'));
   ExpectOneLineError(dir + "/sweep.pcd.bin",
                      "size 21 bytes is not a multiple of 20");
 }
 
 TEST(InfoCommand, TrajectoryFilesUseTheirNamedOrder) {
   const std::string dir = test::MakeTempDir("info_traj");
-  WriteAll(dir + "/pred_traj.txt", "0.0 0 0 0 1 0 0 0\n1.0 3 4 0 1 0 0 0\n");
+  test::WriteFile(dir + "/pred_traj.txt",
+                  "0.0 0 0 0 1 0 0 0\n1.0 3 4 0 1 0 0 0\n");
   std::string out;
   ASSERT_EQ(Info(dir + "/pred_traj.txt", &out), 0) << out;
   EXPECT_THAT(
       out,
       HasSubstr("MonST3R trajectory (t x y z qw qx qy qz), 2 poses, length 5"));
-  WriteAll(dir + "/bad_traj.txt", "0.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0\n");
+  test::WriteFile(dir + "/bad_traj.txt",
+                  "0.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0\n");
   ExpectOneLineError(dir + "/bad_traj.txt", "line 2: expected 8 numbers");
 }
 

@@ -32,6 +32,15 @@ std::string SharedFixtureDir(
     const std::string& name,
     const std::function<void(const std::string&)>& build);
 
+// The whole file as bytes ("" when it cannot be opened).
+std::string ReadFile(const std::string& path);
+// Writes `bytes` as the whole file (binary; no error check: tests that need
+// one check the file afterwards).
+void WriteFile(const std::string& path, const std::string& bytes);
+
+// The number of '\n' in `text`.
+int CountLines(const std::string& text);
+
 // Path to ../shared/data/real/<relative>.
 std::string RealDataPath(const std::string& relative);
 // Path of the built `geodrive` binary.
@@ -39,6 +48,9 @@ std::string GeodriveBinary();
 // Runs a shell command, returns its exit code; captures stdout+stderr into
 // *output if non-null.
 int RunCommand(const std::string& command, std::string* output = nullptr);
+// Runs `geodrive eval <args>`; returns its combined output, its exit code in
+// *rc.
+std::string RunGeodriveEval(const std::string& args, int* rc);
 // The interpreter that sees Debian's python3-* packages.
 constexpr const char* kDebianPython = "/usr/bin/python3";
 // True if `/usr/bin/python3 -c "import <module>"` succeeds.

@@ -29,13 +29,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream os;
-  os << in.rdbuf();
-  return os.str();
-}
-
 // One scene, 800x450, 8.5 s: 102 CAM_FRONT frames, MonST3R clips at 0, 24,
 // 48, 72.
 const std::string& World() {
@@ -72,7 +65,7 @@ std::map<std::string, std::string> OutputFiles(const std::string& out) {
     if (rel == "report.html" || rel == ".complete" ||
         rel.rfind(".lock", 0) == 0)
       continue;  // timings; fixture marker
-    files[rel] = ReadAll(e.path().string());
+    files[rel] = test::ReadFile(e.path().string());
   }
   return files;
 }
@@ -90,7 +83,7 @@ TEST(BuildDataset, EveryMonst3rClipBecomesAPair) {
   const std::string out = FullBuild();
   const auto manifest = ReadManifest(out + "/manifest.jsonl");
   ASSERT_EQ(manifest.size(), 4u);  // clips 0, 24, 48, 72 have MonST3R folders
-  EXPECT_EQ(ReadAll(out + "/failures.jsonl"), "");
+  EXPECT_EQ(test::ReadFile(out + "/failures.jsonl"), "");
   for (const auto& e : manifest) {
     for (const char* f : {"gt.mp4", "cond.mp4", "first_frame.png", "boxes.json",
                           "meta.json", "preview.png"}) {
@@ -263,7 +256,7 @@ TEST(BuildDataset, LidarGeometryNeedsNoMonst3rAndBuildsEveryClip) {
   const BuildDatasetSummary s = BuildDataset(o);
   std::printf("lidar geometry: %s\n", s.BriefReport().c_str());
   EXPECT_EQ(s.clips_total, 13);
-  ASSERT_EQ(s.built, s.clips_total) << ReadAll(out + "/failures.jsonl");
+  ASSERT_EQ(s.built, s.clips_total) << test::ReadFile(out + "/failures.jsonl");
   EXPECT_EQ(ReadManifest(out + "/manifest.jsonl").size(), 13u);
   const PairMeta m = ReadPairMeta(out + "/pairs/scene-0001_0006");
   EXPECT_EQ(m.geometry_source, "lidar");
@@ -282,7 +275,7 @@ TEST(BuildDataset, GeodriveCompatPresetBuilds) {
   o.preset = RenderPreset::kGeodriveCompat;
   o.clips = {"scene-0001_0024"};
   const BuildDatasetSummary s = BuildDataset(o);
-  ASSERT_EQ(s.built, 1) << ReadAll(out + "/failures.jsonl");
+  ASSERT_EQ(s.built, 1) << test::ReadFile(out + "/failures.jsonl");
   const PairMeta m = ReadPairMeta(out + "/pairs/scene-0001_0024");
   EXPECT_EQ(m.preset, "geodrive-compat");
   // Frame 0 is the real image: its static-region PSNR is that of the video, not
@@ -361,7 +354,7 @@ TEST(BuildDataset, RefinePosesReportsReprojectionRmsBeforeAndAfter) {
   ASSERT_EQ(BuildDataset(plain).built, 1);
   const PairMeta p = ReadPairMeta(plain.out + "/pairs/" + id);
   EXPECT_FALSE(p.quality.reprojection_rms_px_before.has_value());
-  EXPECT_EQ(ReadAll(plain.out + "/pairs/" + id + "/meta.json")
+  EXPECT_EQ(test::ReadFile(plain.out + "/pairs/" + id + "/meta.json")
                 .find("reprojection_rms_px"),
             std::string::npos);
 }

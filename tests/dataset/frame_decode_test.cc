@@ -38,13 +38,6 @@ double Psnr(const cv::Mat& a, const cv::Mat& b) {
   return mse <= 0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream os;
-  os << in.rdbuf();
-  return os.str();
-}
-
 std::vector<std::string> RealFrontFrames() {
   std::vector<std::string> files;
   const std::string dir =
@@ -480,7 +473,7 @@ TEST(PairPng, LosslessAndDeterministic) {
   const cv::Mat back = ReadImageRgb(dir + "/a.png");
   ASSERT_EQ(back.size(), rgb.size());
   EXPECT_EQ(cv::norm(back, rgb, cv::NORM_INF), 0.0);
-  EXPECT_EQ(ReadAll(dir + "/a.png"), ReadAll(dir + "/b.png"));
+  EXPECT_EQ(test::ReadFile(dir + "/a.png"), test::ReadFile(dir + "/b.png"));
   // A view (not continuous) is written as its pixels.
   const cv::Mat view = rgb(cv::Rect(5, 7, 50, 30));
   internal::WritePairPng(dir + "/c.png", view);

@@ -23,15 +23,15 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct World {
+struct AlignWorld {
   std::string root;
   SyntheticDatasetSummary summary;
 };
 
-World MakeWorld(const std::string& name,
-                double depth_noise,
-                double pose_noise_m) {
-  World w;
+AlignWorld MakeAlignWorld(const std::string& name,
+                          double depth_noise,
+                          double pose_noise_m) {
+  AlignWorld w;
   w.root = test::MakeTempDir(name);
   SyntheticDatasetOptions o;
   o.num_scenes = 1;
@@ -47,7 +47,7 @@ World MakeWorld(const std::string& name,
   return w;
 }
 
-double TrueMetresPerUnit(const World& w, const std::string& clip_id) {
+double TrueMetresPerUnit(const AlignWorld& w, const std::string& clip_id) {
   std::ifstream in(w.root + "/monst3r_gt/" + clip_id + ".json");
   return nlohmann::json::parse(in)["metres_per_unit"].get<double>();
 }
@@ -83,11 +83,11 @@ void CorruptSweeps(const std::string& root, uint32_t seed) {
   }
 }
 
-const World& NoiseFreeWorld() {
+const AlignWorld& NoiseFreeWorld() {
   // Shared between test processes: the world is generated once (under a lock)
   // and reused.
-  static const World w = [] {
-    World out;
+  static const AlignWorld w = [] {
+    AlignWorld out;
     out.root =
         test::SharedFixtureDir("lidar_align_exact", [](const std::string& dir) {
           SyntheticDatasetOptions o;
@@ -110,7 +110,7 @@ const World& NoiseFreeWorld() {
 }
 
 TEST(LidarAlignmentSynthetic, ExactScaleAndTrajectoryWithoutNoise) {
-  const World& w = NoiseFreeWorld();
+  const AlignWorld& w = NoiseFreeWorld();
   ASSERT_FALSE(w.summary.monst3r_clip_ids.empty());
   const std::string root = w.root;
   const std::string id = w.summary.monst3r_clip_ids.front();
@@ -131,7 +131,7 @@ TEST(LidarAlignmentSynthetic, ExactScaleAndTrajectoryWithoutNoise) {
 // The measurement: 3 % depth noise + 10 % outlier LiDAR returns ->
 // within 0.5 %.
 TEST(LidarAlignmentSynthetic, ScaleWithin05PercentUnderNoiseAndOutliers) {
-  const World w = MakeWorld("lidar_align_noisy", 0.03, 0.05);
+  const AlignWorld w = MakeAlignWorld("lidar_align_noisy", 0.03, 0.05);
   CorruptSweeps(w.root, 5);
   const std::string root = w.root;
   for (const std::string& id : w.summary.monst3r_clip_ids) {
@@ -158,7 +158,7 @@ TEST(LidarAlignmentSynthetic, ScaleWithin05PercentUnderNoiseAndOutliers) {
 }
 
 TEST(LidarAlignmentSynthetic, FramesWithoutLidarAreSkippedWithReason) {
-  const World& w = NoiseFreeWorld();
+  const AlignWorld& w = NoiseFreeWorld();
   const std::string root = w.root;
   const std::string id = w.summary.monst3r_clip_ids.front();
   const Monst3rFolder folder = Monst3rFolder::Open(w.root + "/monst3r/" + id);
@@ -183,7 +183,7 @@ TEST(LidarAlignmentSynthetic, FramesWithoutLidarAreSkippedWithReason) {
 // frame is skipped with a reason, the clip fit fails with a message, nothing is
 // thrown.
 TEST(LidarAlignmentSynthetic, NoValidDepthIsReportedNotThrown) {
-  const World& w = NoiseFreeWorld();
+  const AlignWorld& w = NoiseFreeWorld();
   const std::string id = w.summary.monst3r_clip_ids.front();
   const std::string copy = test::MakeTempDir("lidar_align_no_depth");
   fs::copy(w.root + "/monst3r/" + id, copy, fs::copy_options::recursive);

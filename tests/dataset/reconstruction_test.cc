@@ -35,11 +35,6 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 // One scene, 800x450, 4.5 s: MonST3R clips at CAM_FRONT frames 0 and 24, with
 // depth and pose noise and the world's random scale per clip.
 const std::string& World() {
@@ -642,7 +637,7 @@ std::string BuildWithGeometry(const std::string& geometry,
   const BuildDatasetSummary s = BuildDataset(o);
   std::printf("%s: %s\n", geometry.c_str(), s.BriefReport().c_str());
   EXPECT_EQ(s.built, static_cast<int>(ClipIds().size()))
-      << geometry << ": " << ReadAll(o.out + "/failures.jsonl");
+      << geometry << ": " << test::ReadFile(o.out + "/failures.jsonl");
   return o.out;
 }
 
@@ -844,7 +839,7 @@ TEST(Reconstruction, BuilderTakesMogeFrameZeroAndTheClipTrajectory) {
     o.threads = 2;
     const BuildDatasetSummary s = BuildDataset(o);
     EXPECT_EQ(s.built, static_cast<int>(clips.size()))
-        << geometry << ": " << ReadAll(o.out + "/failures.jsonl");
+        << geometry << ": " << test::ReadFile(o.out + "/failures.jsonl");
     return o.out;
   };
   const std::string ref_out = build("monst3r", World() + "/monst3r");

@@ -10,20 +10,11 @@
 #include "diffusion/config.h"
 #include "diffusion/safetensors.h"
 #include "tests/common/test_util.h"
+#include "tests/diffusion/diffusion_test_util.h"
 
 namespace geodrive {
 namespace diffusion {
 namespace {
-
-std::string Bin() {
-  return std::string("OMP_NUM_THREADS=1 ") + GEODRIVE_DIFFUSION_BINARY;
-}
-
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in),
-                     std::istreambuf_iterator<char>());
-}
 
 // Writes tiny image/cond latents and prompt embeddings into `dir`.
 void WriteTinyInputs(const std::string& dir, uint64_t seed) {
@@ -44,25 +35,32 @@ void WriteTinyInputs(const std::string& dir, uint64_t seed) {
 
 TEST(DiffusionCli, HelpListsSubcommands) {
   std::string out;
-  ASSERT_EQ(test::RunCommand(Bin() + " --help", &out), 0) << out;
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() + " --help", &out), 0)
+      << out;
   for (const char* sub : {"sample", "init-weights", "check-weights", "names"}) {
     EXPECT_NE(out.find(sub), std::string::npos) << sub;
   }
-  ASSERT_EQ(test::RunCommand(Bin() + " sample --help", &out), 0) << out;
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() + " sample --help", &out),
+            0)
+      << out;
   EXPECT_NE(out.find("--cond-latents"), std::string::npos);
-  EXPECT_EQ(test::RunCommand(Bin() + " sample --bogus", &out), 2) << out;
+  EXPECT_EQ(
+      test::RunCommand(test::DiffusionCommand() + " sample --bogus", &out), 2)
+      << out;
 }
 
 TEST(DiffusionCli, SampleIsDeterministicForASeed) {
   const std::string dir = test::MakeTempDir("diffusion_cli_sample");
   std::string out;
   ASSERT_EQ(test::RunCommand(
-                Bin() + " init-weights --config tiny --nonzero-branch --out " +
+                test::DiffusionCommand() +
+                    " init-weights --config tiny --nonzero-branch --out " +
                     dir + "/w.safetensors",
                 &out),
             0)
       << out;
-  ASSERT_EQ(test::RunCommand(Bin() + " check-weights --config tiny --weights " +
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                 " check-weights --config tiny --weights " +
                                  dir + "/w.safetensors",
                              &out),
             0)
@@ -75,7 +73,7 @@ TEST(DiffusionCli, SampleIsDeterministicForASeed) {
                     const std::string& extra) {
     std::string log;
     const int rc = test::RunCommand(
-        Bin() + " sample --config tiny --weights " + dir +
+        test::DiffusionCommand() + " sample --config tiny --weights " + dir +
             "/w.safetensors --latents " + dir +
             "/image.safetensors --cond-latents " + dir +
             "/cond.safetensors --prompt-embeds " + dir +
@@ -89,10 +87,10 @@ TEST(DiffusionCli, SampleIsDeterministicForASeed) {
   EXPECT_NE(log.find("6/6"), std::string::npos) << "progress bar: " << log;
   sample("b.safetensors", 7, "");
   sample("c.safetensors", 8, "");
-  const std::string a = ReadBytes(dir + "/a.safetensors");
+  const std::string a = test::ReadFile(dir + "/a.safetensors");
   ASSERT_GT(a.size(), 100u);
-  EXPECT_EQ(a, ReadBytes(dir + "/b.safetensors"));
-  EXPECT_NE(a, ReadBytes(dir + "/c.safetensors"));
+  EXPECT_EQ(a, test::ReadFile(dir + "/b.safetensors"));
+  EXPECT_NE(a, test::ReadFile(dir + "/c.safetensors"));
   SafetensorsFile f(dir + "/a.safetensors");
   const at::Tensor lat = f.Load("latents");
   const DiTConfig c = ConfigPreset("tiny");
@@ -103,11 +101,11 @@ TEST(DiffusionCli, SampleIsDeterministicForASeed) {
   // The condition latents reach the output through the (non-zero) encoder.
   WriteTinyInputs(dir, 2);
   sample("d.safetensors", 7, "");
-  EXPECT_NE(a, ReadBytes(dir + "/d.safetensors"));
+  EXPECT_NE(a, test::ReadFile(dir + "/d.safetensors"));
   // DDIM runs too and differs from DPM.
   sample("e.safetensors", 7, "--scheduler ddim --no-progress");
-  EXPECT_NE(ReadBytes(dir + "/d.safetensors"),
-            ReadBytes(dir + "/e.safetensors"));
+  EXPECT_NE(test::ReadFile(dir + "/d.safetensors"),
+            test::ReadFile(dir + "/e.safetensors"));
 }
 
 TEST(DiffusionCli, BadInputExitsTwoNamingTheFile) {
@@ -116,30 +114,35 @@ TEST(DiffusionCli, BadInputExitsTwoNamingTheFile) {
   WriteTinyInputs(dir, 3);
   const std::string missing = dir + "/nope.safetensors";
   EXPECT_EQ(test::RunCommand(
-                Bin() + " sample --config tiny --weights " + missing +
-                    " --latents " + dir + "/image.safetensors --cond-latents " +
-                    dir + "/cond.safetensors --out " + dir + "/o.safetensors",
+                test::DiffusionCommand() + " sample --config tiny --weights " +
+                    missing + " --latents " + dir +
+                    "/image.safetensors --cond-latents " + dir +
+                    "/cond.safetensors --out " + dir + "/o.safetensors",
                 &out),
             2);
   EXPECT_NE(out.find(missing), std::string::npos) << out;
   EXPECT_EQ(
-      test::RunCommand(
-          Bin() + " init-weights --config huge --out " + dir + "/x", &out),
+      test::RunCommand(test::DiffusionCommand() +
+                           " init-weights --config huge --out " + dir + "/x",
+                       &out),
       2);
   EXPECT_NE(out.find("unknown preset 'huge'"), std::string::npos) << out;
-  EXPECT_EQ(test::RunCommand(
-                Bin() + " init-weights --config cogvideox-5b-i2v --out " + dir +
-                    "/x.safetensors",
-                &out),
-            2);
+  EXPECT_EQ(
+      test::RunCommand(test::DiffusionCommand() +
+                           " init-weights --config cogvideox-5b-i2v --out " +
+                           dir + "/x.safetensors",
+                       &out),
+      2);
   EXPECT_NE(out.find("--allow-large"), std::string::npos) << out;
   // Weights of another shape: the 5B table does not fit a tiny checkpoint.
-  ASSERT_EQ(test::RunCommand(Bin() + " init-weights --config tiny --out " +
-                                 dir + "/w.safetensors",
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                 " init-weights --config tiny --out " + dir +
+                                 "/w.safetensors",
                              &out),
             0);
   EXPECT_EQ(test::RunCommand(
-                Bin() + " check-weights --config cogvideox-5b-i2v --weights " +
+                test::DiffusionCommand() +
+                    " check-weights --config cogvideox-5b-i2v --weights " +
                     dir + "/w.safetensors",
                 &out),
             2);

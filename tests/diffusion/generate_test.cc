@@ -22,21 +22,12 @@
 #include "geometry/trajectory_json.h"
 #include "render/video/video_io.h"
 #include "tests/common/test_util.h"
+#include "tests/diffusion/diffusion_test_util.h"
 
 namespace geodrive {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Bin() {
-  return std::string("OMP_NUM_THREADS=1 ") + GEODRIVE_DIFFUSION_BINARY;
-}
-
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in),
-                     std::istreambuf_iterator<char>());
-}
 
 constexpr int kW = 64, kH = 48;
 
@@ -97,7 +88,7 @@ std::string WriteMonst3rFolder(const std::string& root, int n) {
 std::string TinyWeights(const std::string& dir) {
   const std::string w = dir + "/tiny.safetensors";
   std::string out;
-  EXPECT_EQ(test::RunCommand(Bin() +
+  EXPECT_EQ(test::RunCommand(test::DiffusionCommand() +
                                  " init-weights --config tiny --seed 3 "
                                  "--nonzero-branch --out " +
                                  w,
@@ -111,8 +102,8 @@ TEST(DiffusionGenerate, Monst3rFolderEndToEndWritesRequestedFrames) {
   const std::string dir = test::MakeTempDir("generate_monst3r");
   const std::string m3r = WriteMonst3rFolder(dir, 9);
   const std::string w = TinyWeights(dir);
-  const std::string common = Bin() + " generate --geometry " + m3r +
-                             " --weights " + w +
+  const std::string common = test::DiffusionCommand() +
+                             " generate --geometry " + m3r + " --weights " + w +
                              " --config tiny --frames 7 --steps 2 "
                              "--no-progress --seed 5 --out ";
   std::string out;
@@ -133,7 +124,9 @@ TEST(DiffusionGenerate, Monst3rFolderEndToEndWritesRequestedFrames) {
   for (const char* f : {"cond", "sample"}) {
     const std::string name =
         std::string("/video_latents/") + f + ".safetensors";
-    EXPECT_EQ(ReadBytes(dir + "/a" + name), ReadBytes(dir + "/b" + name)) << f;
+    EXPECT_EQ(test::ReadFile(dir + "/a" + name),
+              test::ReadFile(dir + "/b" + name))
+        << f;
   }
   // --boxes: one object whose 2D box slides right; the 2D dynamic edit pastes
   // its frame-0 crop along the track, so the condition render changes.
@@ -158,8 +151,8 @@ TEST(DiffusionGenerate, Monst3rFolderEndToEndWritesRequestedFrames) {
             std::string::npos)
       << out;
   EXPECT_EQ(ReadVideoFrames(dir + "/c/video.mp4").size(), 7u);
-  EXPECT_NE(ReadBytes(dir + "/a/video_latents/cond.safetensors"),
-            ReadBytes(dir + "/c/video_latents/cond.safetensors"));
+  EXPECT_NE(test::ReadFile(dir + "/a/video_latents/cond.safetensors"),
+            test::ReadFile(dir + "/c/video_latents/cond.safetensors"));
 }
 
 TEST(DiffusionGenerate, ImageDepthIntrinsicsWithUserTrajectory) {
@@ -175,15 +168,16 @@ TEST(DiffusionGenerate, ImageDepthIntrinsicsWithUserTrajectory) {
   WriteTrajectoryJson(dir + "/traj.json", ForwardTrajectory(5));
   const std::string w = TinyWeights(dir);
   std::string out;
-  ASSERT_EQ(test::RunCommand(
-                Bin() + " generate --image " + dir + "/first.png --depth " +
-                    dir + "/depth.npy --intrinsics " + dir +
-                    "/K.txt --trajectory " + dir + "/traj.json --weights " + w +
-                    " --steps 1 --scheduler ddim --no-progress "
-                    "--out " +
-                    dir + "/gen.mp4",
-                &out),
-            0)
+  ASSERT_EQ(
+      test::RunCommand(
+          test::DiffusionCommand() + " generate --image " + dir +
+              "/first.png --depth " + dir + "/depth.npy --intrinsics " + dir +
+              "/K.txt --trajectory " + dir + "/traj.json --weights " + w +
+              " --steps 1 --scheduler ddim --no-progress "
+              "--out " +
+              dir + "/gen.mp4",
+          &out),
+      0)
       << out;
   // Default --frames: min(9 model frames, 5 poses).
   EXPECT_EQ(ReadVideoFrames(dir + "/gen.mp4").size(), 5u) << out;
@@ -235,8 +229,8 @@ TEST(DiffusionGenerate, ManifestBatchWritesOneVideoPerPair) {
   const std::string w = TinyWeights(dir);
   std::string out;
   ASSERT_EQ(
-      test::RunCommand(Bin() + " generate --manifest " + dir +
-                           "/build/manifest.jsonl --out-dir " + dir +
+      test::RunCommand(test::DiffusionCommand() + " generate --manifest " +
+                           dir + "/build/manifest.jsonl --out-dir " + dir +
                            "/pred --weights " + w + " --steps 1 --no-progress",
                        &out),
       0)
@@ -284,29 +278,32 @@ TEST(DiffusionGenerate, SceneToolPathMatchesTheMonst3rFolder) {
                              " --config tiny --frames 7 --steps 2 "
                              "--no-progress --seed 5 --out ";
   std::string out;
-  ASSERT_EQ(test::RunCommand(Bin() + " generate --geometry " + m3r + common +
-                                 dir + "/a/video.mp4",
-                             &out),
-            0)
+  ASSERT_EQ(
+      test::RunCommand(test::DiffusionCommand() + " generate --geometry " +
+                           m3r + common + dir + "/a/video.mp4",
+                       &out),
+      0)
       << out;
-  ASSERT_EQ(test::RunCommand(Bin() + " generate --scene npz:" + dir +
-                                 "/scene.npz" + common + dir + "/s/video.mp4",
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                 " generate --scene npz:" + dir + "/scene.npz" +
+                                 common + dir + "/s/video.mp4",
                              &out),
             0)
       << out;
   for (const char* f : {"cond", "sample"}) {
     const std::string a =
-        ReadBytes(dir + "/a/video_latents/" + f + ".safetensors");
+        test::ReadFile(dir + "/a/video_latents/" + f + ".safetensors");
     EXPECT_FALSE(a.empty()) << f;
-    EXPECT_EQ(a, ReadBytes(dir + "/s/video_latents/" + f + ".safetensors"))
+    EXPECT_EQ(a, test::ReadFile(dir + "/s/video_latents/" + f + ".safetensors"))
         << f;
   }
   // --scene with --geometry: one line, exit 2.
-  EXPECT_EQ(test::RunCommand(Bin() + " generate --geometry " + m3r +
-                                 " --scene npz:" + dir + "/scene.npz" + common +
-                                 dir + "/x.mp4",
-                             &out),
-            2);
+  EXPECT_EQ(
+      test::RunCommand(test::DiffusionCommand() + " generate --geometry " +
+                           m3r + " --scene npz:" + dir + "/scene.npz" + common +
+                           dir + "/x.mp4",
+                       &out),
+      2);
   EXPECT_NE(out.find("exactly one of --geometry"), std::string::npos) << out;
 }
 
@@ -315,18 +312,19 @@ TEST(DiffusionGenerate, BadArgumentsExitTwoWithOneLine) {
   const std::string m3r = WriteMonst3rFolder(dir, 9);
   const std::string w = TinyWeights(dir);
   std::string out;
-  EXPECT_EQ(
-      test::RunCommand(Bin() + " generate --geometry " + m3r + " --weights " +
-                           w + " --frames 20 --out " + dir + "/x.mp4",
-                       &out),
-      2);
-  EXPECT_NE(out.find("--frames 20 must be in [1, 9]"), std::string::npos)
-      << out;
-  EXPECT_EQ(test::RunCommand(Bin() + " generate --geometry " + m3r +
-                                 " --depth d.npy --weights " + w + " --out " +
-                                 dir + "/x.mp4",
+  EXPECT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                 " generate --geometry " + m3r + " --weights " +
+                                 w + " --frames 20 --out " + dir + "/x.mp4",
                              &out),
             2);
+  EXPECT_NE(out.find("--frames 20 must be in [1, 9]"), std::string::npos)
+      << out;
+  EXPECT_EQ(
+      test::RunCommand(test::DiffusionCommand() + " generate --geometry " +
+                           m3r + " --depth d.npy --weights " + w + " --out " +
+                           dir + "/x.mp4",
+                       &out),
+      2);
   EXPECT_NE(out.find("exactly one of --geometry"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir + "/x.mp4"));
 }

@@ -17,14 +17,11 @@
 #include "diffusion/sampler.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
+#include "tests/diffusion/diffusion_test_util.h"
 
 namespace geodrive {
 namespace diffusion {
 namespace {
-
-std::string Bin() {
-  return std::string("OMP_NUM_THREADS=1 ") + GEODRIVE_DIFFUSION_BINARY;
-}
 
 TEST(DiffusionRuntime, ParsesDevicesAndDtypesWholeString) {
   EXPECT_FALSE(ParseDevice("cpu").is_cuda());
@@ -192,7 +189,8 @@ TEST(DiffusionRuntime, SampleInBf16GivesFloat32LatentsNearFp32) {
   const std::string dir = test::MakeTempDir("diffusion_runtime_sample");
   std::string log;
   ASSERT_EQ(test::RunCommand(
-                Bin() + " init-weights --config tiny --nonzero-branch --out " +
+                test::DiffusionCommand() +
+                    " init-weights --config tiny --nonzero-branch --out " +
                     dir + "/w.safetensors",
                 &log),
             0)
@@ -210,8 +208,9 @@ TEST(DiffusionRuntime, SampleInBf16GivesFloat32LatentsNearFp32) {
         at::randn({1, F, C, c.latent_height, c.latent_width}, gen)}});
   auto sample = [&](const std::string& out, const std::string& extra) {
     std::string l;
-    EXPECT_EQ(test::RunCommand(Bin() + " sample --config tiny --weights " +
-                                   dir + "/w.safetensors --latents " + dir +
+    EXPECT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                   " sample --config tiny --weights " + dir +
+                                   "/w.safetensors --latents " + dir +
                                    "/image.safetensors --cond-latents " + dir +
                                    "/cond.safetensors --steps 3 --no-progress "
                                    "--out " +
@@ -241,20 +240,21 @@ TEST(DiffusionRuntime, SampleInBf16GivesFloat32LatentsNearFp32) {
   for (const char* extra :
        {"--device gpu", "--dtype bf17", "--attention flash"}) {
     std::string bad;
-    EXPECT_EQ(test::RunCommand(Bin() + " sample --config tiny --weights " +
-                                   dir + "/w.safetensors --latents " + dir +
-                                   "/image.safetensors --cond-latents " + dir +
-                                   "/cond.safetensors --out " + dir +
-                                   "/x.safetensors " + extra,
-                               &bad),
-              2)
+    EXPECT_EQ(
+        test::RunCommand(
+            test::DiffusionCommand() + " sample --config tiny --weights " +
+                dir + "/w.safetensors --latents " + dir +
+                "/image.safetensors --cond-latents " + dir +
+                "/cond.safetensors --out " + dir + "/x.safetensors " + extra,
+            &bad),
+        2)
         << extra << ": " << bad;
     EXPECT_NE(bad.find(std::string(extra).substr(0, 6)), std::string::npos)
         << bad;
   }
   if (!GetRuntimeInfo().cuda_available) {
     std::string bad;
-    EXPECT_EQ(test::RunCommand(Bin() +
+    EXPECT_EQ(test::RunCommand(test::DiffusionCommand() +
                                    " check-weights --config tiny "
                                    "--weights " +
                                    dir + "/w.safetensors --device cuda",
@@ -264,7 +264,8 @@ TEST(DiffusionRuntime, SampleInBf16GivesFloat32LatentsNearFp32) {
     EXPECT_NE(bad.find("no CUDA support"), std::string::npos) << bad;
   }
   std::string check;
-  ASSERT_EQ(test::RunCommand(Bin() + " check-weights --config tiny --weights " +
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                 " check-weights --config tiny --weights " +
                                  dir + "/w.safetensors --dtype bf16",
                              &check),
             0)

@@ -278,13 +278,6 @@ TEST(Train, StreamingThroughThePrefetchQueueEqualsCachedLatents) {
   }
 }
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 TEST(Train, CliWritesLogsAndCheckpointsAndResumes) {
   const std::string dir = DiffusionPairsFixture();
   const std::string out = test::MakeTempDir("train_cli");
@@ -304,7 +297,7 @@ TEST(Train, CliWritesLogsAndCheckpointsAndResumes) {
             0)
       << log;
   const nlohmann::json j =
-      nlohmann::json::parse(ReadAll(out + "/train_log.json"));
+      nlohmann::json::parse(test::ReadFile(out + "/train_log.json"));
   const auto& rows = j.at("log");
   ASSERT_EQ(rows.size(), 11u);  // step 0 (validation only) + 10 steps
   for (size_t i = 0; i < rows.size(); ++i) {
@@ -315,7 +308,7 @@ TEST(Train, CliWritesLogsAndCheckpointsAndResumes) {
   EXPECT_FALSE(rows[4].at("val_loss").is_null());
   EXPECT_TRUE(rows[5].at("val_loss").is_null());
   EXPECT_FALSE(rows[10].at("val_loss").is_null());  // last step
-  const std::string csv = ReadAll(out + "/train_log.csv");
+  const std::string csv = test::ReadFile(out + "/train_log.csv");
   EXPECT_EQ(csv.rfind("step,loss,val_loss,lr,grad_norm,seconds\n", 0), 0u);
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 12);
   EXPECT_TRUE(fs::exists(out + "/checkpoint-10/branch/"

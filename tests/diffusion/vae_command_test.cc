@@ -22,6 +22,7 @@
 #include "geometry/image_io.h"
 #include "render/video/video_io.h"
 #include "tests/common/test_util.h"
+#include "tests/diffusion/diffusion_test_util.h"
 
 namespace geodrive {
 namespace diffusion {
@@ -29,23 +30,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string Bin() {
-  return std::string("OMP_NUM_THREADS=1 ") + GEODRIVE_DIFFUSION_BINARY;
-}
-
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in),
-                     std::istreambuf_iterator<char>());
-}
-
-double MaxAbs(const at::Tensor& t) { return t.abs().max().item<double>(); }
-
 // Runs the binary with `args`; returns its combined output, expecting `rc`.
 std::string RunCli(const std::string& args, int rc = 0) {
   std::string out;
-  EXPECT_EQ(test::RunCommand(Bin() + " " + args, &out), rc) << args << "\n"
-                                                            << out;
+  EXPECT_EQ(test::RunCommand(test::DiffusionCommand() + " " + args, &out), rc)
+      << args << "\n"
+      << out;
   return out;
 }
 
@@ -109,8 +99,8 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
   EXPECT_NE(log_meta.find("VAE tiny, random tiny VAE (seed 3)"),
             std::string::npos)
       << log_meta;
-  EXPECT_TRUE(ReadBytes(dir + "/meta_dec.safetensors") ==
-              ReadBytes(dir + "/a/dec.safetensors"));
+  EXPECT_TRUE(test::ReadFile(dir + "/meta_dec.safetensors") ==
+              test::ReadFile(dir + "/a/dec.safetensors"));
 
   // Latents: [B, F', C, h, w] = mean x 0.7, as generate stores them.
   const SafetensorsFile lat_file(dir + "/a/lat.safetensors");
@@ -126,8 +116,9 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
   const at::Tensor mean = VaeEncode(c, w, video);
   // Same library, same input, one thread each: equal up to float32 rounding
   // of the x 0.7 / 0.7 (the CLI and this process may pick other kernels).
-  EXPECT_LT(MaxAbs(lat - (mean * c.scaling_factor).permute({0, 2, 1, 3, 4})),
-            1e-6);
+  EXPECT_LT(
+      test::MaxAbs(lat - (mean * c.scaling_factor).permute({0, 2, 1, 3, 4})),
+      1e-6);
 
   // Decoded tensor: float32 [B, 3, F, H, W], unclamped.
   const SafetensorsFile dec_file(dir + "/a/dec.safetensors");
@@ -138,9 +129,10 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
   EXPECT_EQ(dec_file.metadata().at("format"), "geodrive-vae-video");
   const at::Tensor expected =
       VaeDecode(c, w, (lat / c.scaling_factor).permute({0, 2, 1, 3, 4}));
-  EXPECT_LT(MaxAbs(dec - expected), 1e-5 * std::max(1.0, MaxAbs(expected)));
+  EXPECT_LT(test::MaxAbs(dec - expected),
+            1e-5 * std::max(1.0, test::MaxAbs(expected)));
   // A random VAE overshoots [-1, 1]: the tensor keeps it, the frames clamp.
-  const double peak = MaxAbs(dec);
+  const double peak = test::MaxAbs(dec);
   std::cout << "decoded max |x| " << peak << std::endl;
 
   // 16-bit frames: v = round((clamp(x) + 1) * 32767.5), so v / 32767.5 - 1
@@ -148,7 +140,7 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
   const at::Tensor v16 = ReadFrames16(dir + "/a/frames", 17);
   EXPECT_FALSE(fs::exists(dir + "/a/frames/00017.png"));
   const double quant =
-      MaxAbs(v16 / 32767.5 - 1.0 - dec.to(at::kDouble).clamp(-1.0, 1.0));
+      test::MaxAbs(v16 / 32767.5 - 1.0 - dec.to(at::kDouble).clamp(-1.0, 1.0));
   std::cout << "16-bit frames vs clamped tensor: max abs " << quant
             << " (bound 1/65535 = " << 1.0 / 65535 << ")" << std::endl;
   EXPECT_LE(quant, 1.0 / 65535 + 1e-12);
@@ -161,9 +153,10 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
          "/lat_frames.safetensors");
   const at::Tensor lat_frames =
       SafetensorsFile(dir + "/lat_frames.safetensors").Load("latents");
-  EXPECT_LT(MaxAbs(lat_frames - (VaeEncode(c, w, frames) * c.scaling_factor)
+  EXPECT_LT(
+      test::MaxAbs(lat_frames - (VaeEncode(c, w, frames) * c.scaling_factor)
                                     .permute({0, 2, 1, 3, 4})),
-            1e-6);
+      1e-6);
   // The MP4: 17 8-bit frames of 24x16.
   const std::vector<cv::Mat> mp4 = ReadVideoFrames(dir + "/a/dec.mp4");
   ASSERT_EQ(mp4.size(), 17u);
@@ -178,12 +171,12 @@ TEST(VaeCommand, TinyRoundTripShapesMetadataFramesAndDeterminism) {
   }
   std::vector<std::string> first;
   for (const std::string& file : files)
-    first.push_back(ReadBytes(dir + "/a/" + file));
+    first.push_back(test::ReadFile(dir + "/a/" + file));
   fs::remove_all(dir + "/a/frames");  // vae-decode wants an empty folder
   round_trip("a");
   for (size_t i = 0; i < files.size(); ++i) {
     EXPECT_GT(first[i].size(), 100u) << files[i];
-    EXPECT_TRUE(first[i] == ReadBytes(dir + "/a/" + files[i])) << files[i];
+    EXPECT_TRUE(first[i] == test::ReadFile(dir + "/a/" + files[i])) << files[i];
   }
 }
 
@@ -238,7 +231,7 @@ TEST(VaeCommand, DecoderMatchesTorchReference) {
   ASSERT_EQ(static_cast<int64_t>(values.size()), mine.numel())
       << out.substr(0, 500);
   const at::Tensor ref = at::tensor(values).view(mine.sizes());
-  const double err = MaxAbs(mine - ref), scale = MaxAbs(ref);
+  const double err = test::MaxAbs(mine - ref), scale = test::MaxAbs(ref);
   const double mean_err = (mine - ref).abs().mean().item<double>();
   std::cout << "vae-decode vs torch reference: max abs " << err << ", mean abs "
             << mean_err << " (max |out| " << scale << ")" << std::endl;

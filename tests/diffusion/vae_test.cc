@@ -18,6 +18,7 @@
 #include "diffusion/safetensors.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
+#include "tests/diffusion/diffusion_test_util.h"
 
 namespace geodrive {
 namespace diffusion {
@@ -40,8 +41,6 @@ std::string ReferenceCommand(const std::string& args) {
   return std::string(test::kDebianPython) + " " + GEODRIVE_SOURCE_DIR +
          "/tests/diffusion/vae_reference.py " + args;
 }
-
-double MaxAbs(const at::Tensor& t) { return t.abs().max().item<double>(); }
 
 // A smooth moving pattern in [-1, 1]: [1, 3, F, H, W].
 at::Tensor SmoothVideo(int64_t frames, int64_t h, int64_t w) {
@@ -213,9 +212,9 @@ TEST(Vae, EncodeIsCausalAtFrameBatchGranularity) {
     v.narrow(2, t, 49 - t).add_(at::randn_like(v.narrow(2, t, 49 - t)) * 0.5);
     const at::Tensor lat = VaeEncode(c, w, v);
     const double same =
-        MaxAbs(lat.narrow(2, 0, keep) - base.narrow(2, 0, keep));
-    const double changed = MaxAbs(lat.narrow(2, keep, 13 - keep) -
-                                  base.narrow(2, keep, 13 - keep));
+        test::MaxAbs(lat.narrow(2, 0, keep) - base.narrow(2, 0, keep));
+    const double changed = test::MaxAbs(lat.narrow(2, keep, 13 - keep) -
+                                        base.narrow(2, keep, 13 - keep));
     std::cout << "encode: perturb frames >= " << t << ": latents < " << keep
               << " change " << same << ", later latents " << changed
               << std::endl;
@@ -236,9 +235,9 @@ TEST(Vae, DecodeIsCausalAtFrameBatchGranularity) {
     z.narrow(2, t, 13 - t).add_(at::randn_like(z.narrow(2, t, 13 - t)));
     const at::Tensor dec = VaeDecode(c, w, z);
     const double same =
-        MaxAbs(dec.narrow(2, 0, keep) - base.narrow(2, 0, keep));
-    const double changed = MaxAbs(dec.narrow(2, keep, 49 - keep) -
-                                  base.narrow(2, keep, 49 - keep));
+        test::MaxAbs(dec.narrow(2, 0, keep) - base.narrow(2, 0, keep));
+    const double changed = test::MaxAbs(dec.narrow(2, keep, 49 - keep) -
+                                        base.narrow(2, keep, 49 - keep));
     std::cout << "decode: perturb latents >= " << t << ": frames < " << keep
               << " change " << same << ", later frames " << changed
               << std::endl;
@@ -259,16 +258,16 @@ TEST(Vae, FrameBatchingChangesGroupNormStatistics) {
   whole.frame_batching = false;
   const at::Tensor video = SmoothVideo(25, 16, 24);
   const double enc_diff =
-      MaxAbs(VaeEncode(c, w, video) - VaeEncode(c, w, video, whole));
+      test::MaxAbs(VaeEncode(c, w, video) - VaeEncode(c, w, video, whole));
   const at::Tensor lat = at::randn({1, 4, 7, 2, 3});
   const double dec_diff =
-      MaxAbs(VaeDecode(c, w, lat) - VaeDecode(c, w, lat, whole));
+      test::MaxAbs(VaeDecode(c, w, lat) - VaeDecode(c, w, lat, whole));
   const at::Tensor v9 = video.narrow(2, 0, 9);
   const double first_diff =
-      MaxAbs(VaeEncode(c, w, v9) - VaeEncode(c, w, v9, whole));
+      test::MaxAbs(VaeEncode(c, w, v9) - VaeEncode(c, w, v9, whole));
   const at::Tensor z3 = lat.narrow(2, 0, 3);
   const double first_dec =
-      MaxAbs(VaeDecode(c, w, z3) - VaeDecode(c, w, z3, whole));
+      test::MaxAbs(VaeDecode(c, w, z3) - VaeDecode(c, w, z3, whole));
   std::cout << "batched vs whole-video: encode " << enc_diff << ", decode "
             << dec_diff << "; single batch: " << first_diff << ", " << first_dec
             << std::endl;
@@ -317,7 +316,7 @@ TEST(Vae, MatchesIndependentTorchReference) {
     ASSERT_EQ(static_cast<int64_t>(ref.size()), got.numel())
         << out.substr(0, 500);
     const at::Tensor r = at::tensor(ref);
-    const double err = MaxAbs(got - r), scale = MaxAbs(r);
+    const double err = test::MaxAbs(got - r), scale = test::MaxAbs(r);
     std::cout << mode << " vs torch reference: max abs difference " << err
               << " (max |out| " << scale << ")" << std::endl;
     EXPECT_GT(scale, 0.1);

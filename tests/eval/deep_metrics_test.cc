@@ -326,12 +326,6 @@ TEST(DeepMetrics, WrongModelOutputsAreInputErrors) {
                    {"RGB uint8"});
 }
 
-std::string RunEvalCli(const std::string& args, int* rc) {
-  std::string out;
-  *rc = test::RunCommand(test::GeodriveBinary() + " eval " + args, &out);
-  return out;
-}
-
 FeatureStatistics Stats(const std::string& path) {
   return ComputeFeatureStatistics(ReadExpected(path));
 }
@@ -348,11 +342,11 @@ TEST(DeepMetrics, CliLpipsFidFvdAndReferenceStatsCache) {
                              "inception_like.pt --fvd-model " + models +
                              "i3d_small.pt";
   int rc = 0;
-  std::string out =
-      RunEvalCli("--metrics psnr,lpips,fid,fvd --fid-stats " + tmp +
-                     "/stats/ref_fid --fvd-stats " + tmp +
-                     "/stats/ref_fvd --out " + tmp + "/a/report.json" + common,
-                 &rc);
+  std::string out = test::RunGeodriveEval(
+      "--metrics psnr,lpips,fid,fvd --fid-stats " + tmp +
+          "/stats/ref_fid --fvd-stats " + tmp + "/stats/ref_fvd --out " + tmp +
+          "/a/report.json" + common,
+      &rc);
   ASSERT_EQ(rc, 0) << out;
   std::ifstream in(tmp + "/a/report.json");
   const nlohmann::json j = nlohmann::json::parse(in);
@@ -404,7 +398,7 @@ TEST(DeepMetrics, CliLpipsFidFvdAndReferenceStatsCache) {
   EXPECT_EQ(table.find("| - | - | - | - |"), std::string::npos) << table;
 
   // Second run: the cached reference statistics replace --gt for fid/fvd.
-  out = RunEvalCli(
+  out = test::RunGeodriveEval(
       "--metrics fid,fvd --pred " + dir + "/frames/cli_pred --fid-model " +
           models + "inception_like.pt --fvd-model " + models +
           "i3d_small.pt --fid-stats " + tmp + "/stats/ref_fid --fvd-stats " +
@@ -424,27 +418,29 @@ TEST(DeepMetrics, CliLpipsFidFvdAndReferenceStatsCache) {
 
   // Bad input: reference statistics of another model (4-d FVD statistics
   // given as 16-d FID statistics), a model flag missing, a non-model file.
-  out = RunEvalCli("--metrics fid --pred " + dir +
-                       "/frames/cli_pred --fid-model " + models +
-                       "inception_like.pt --fid-stats " + tmp +
-                       "/stats/ref_fvd --out " + tmp + "/c.json",
-                   &rc);
+  out = test::RunGeodriveEval("--metrics fid --pred " + dir +
+                                  "/frames/cli_pred --fid-model " + models +
+                                  "inception_like.pt --fid-stats " + tmp +
+                                  "/stats/ref_fvd --out " + tmp + "/c.json",
+                              &rc);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("reference statistics have 4 dimensions, the fid model "
                      "gives 16"),
             std::string::npos)
       << out;
-  out = RunEvalCli("--metrics fid --pred " + dir + "/frames/cli_pred --gt " +
-                       dir + "/frames/cli_gt --out " + tmp + "/c.json",
-                   &rc);
+  out = test::RunGeodriveEval("--metrics fid --pred " + dir +
+                                  "/frames/cli_pred --gt " + dir +
+                                  "/frames/cli_gt --out " + tmp + "/c.json",
+                              &rc);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("--metrics fid needs --fid-model"), std::string::npos)
       << out;
   std::ofstream(tmp + "/text.pt") << "not a model";
-  out = RunEvalCli("--metrics lpips --pred " + dir + "/frames/cli_pred --gt " +
-                       dir + "/frames/cli_gt --lpips-model " + tmp +
-                       "/text.pt --out " + tmp + "/c.json",
-                   &rc);
+  out = test::RunGeodriveEval("--metrics lpips --pred " + dir +
+                                  "/frames/cli_pred --gt " + dir +
+                                  "/frames/cli_gt --lpips-model " + tmp +
+                                  "/text.pt --out " + tmp + "/c.json",
+                              &rc);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find(tmp + "/text.pt: not a TorchScript model"),
             std::string::npos)

@@ -36,12 +36,6 @@ std::vector<cv::Mat> MakeClip(int frames, uint32_t seed, int noise) {
   return out;
 }
 
-std::string RunEvalCli(const std::string& args, int* rc) {
-  std::string out;
-  *rc = test::RunCommand(test::GeodriveBinary() + " eval " + args, &out);
-  return out;
-}
-
 TEST(EvalCli, PairsFoldersReportAndFiles) {
   const std::string dir = test::MakeTempDir("eval_cli_pairs");
   std::vector<std::vector<cv::Mat>> gts, preds;
@@ -62,12 +56,12 @@ TEST(EvalCli, PairsFoldersReportAndFiles) {
   WriteTumTrajectory(dir + "/gt.txt", gt_traj);
   WriteTumTrajectory(dir + "/pred.txt", pred_traj);
   int rc = 0;
-  const std::string out =
-      RunEvalCli("--pred " + dir + "/pairs --gt " + dir +
-                     "/pairs --metrics psnr,ssim,ade,fde --x100 --pred-traj " +
-                     dir + "/pred.txt --gt-traj " + dir + "/gt.txt --out " +
-                     dir + "/out/report.json",
-                 &rc);
+  const std::string out = test::RunGeodriveEval(
+      "--pred " + dir + "/pairs --gt " + dir +
+          "/pairs --metrics psnr,ssim,ade,fde --x100 --pred-traj " + dir +
+          "/pred.txt --gt-traj " + dir + "/gt.txt --out " + dir +
+          "/out/report.json",
+      &rc);
   ASSERT_EQ(rc, 0) << out;
   for (const char* ext : {".json", ".csv", ".md", ".png"}) {
     EXPECT_TRUE(std::filesystem::exists(dir + "/out/report" + std::string(ext)))
@@ -103,9 +97,10 @@ TEST(EvalCli, Mp4Input) {
   ASSERT_EQ(frames.size(), 6u);
   EXPECT_GT(Psnr(frames[0], gt[0]), 25.0);  // lossy codec, but the same picture
   int rc = 0;
-  const std::string out = RunEvalCli("--pred " + dir + "/gt.mp4 --gt " + dir +
-                                         "/gt.mp4 --out " + dir + "/r.json",
-                                     &rc);
+  const std::string out =
+      test::RunGeodriveEval("--pred " + dir + "/gt.mp4 --gt " + dir +
+                                "/gt.mp4 --out " + dir + "/r.json",
+                            &rc);
   EXPECT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("psnr 100"), std::string::npos)
       << out;  // identical -> cap
@@ -117,21 +112,22 @@ TEST(EvalCli, BadInputExitsTwoWithOneLine) {
   WriteVideoFrames(dir + "/pred", MakeClip(4, 1, 3));
   std::filesystem::create_directories(dir + "/empty");
   int rc = 0;
-  std::string out = RunEvalCli(
+  std::string out = test::RunGeodriveEval(
       "--pred " + dir + "/pred --gt " + dir + "/gt --out " + dir + "/r.json",
       &rc);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("frame counts differ (predicted 4, ground truth 5)"),
             std::string::npos)
       << out;
-  out = RunEvalCli(
+  out = test::RunGeodriveEval(
       "--pred " + dir + "/empty --gt " + dir + "/gt --out " + dir + "/r.json",
       &rc);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("no videos found"), std::string::npos) << out;
-  out = RunEvalCli("--pred " + dir + "/pred --gt " + dir +
-                       "/gt --metrics psnr,fid --out " + dir + "/r.json",
-                   &rc);
+  out = test::RunGeodriveEval("--pred " + dir + "/pred --gt " + dir +
+                                  "/gt --metrics psnr,fid --out " + dir +
+                                  "/r.json",
+                              &rc);
   EXPECT_EQ(rc, 2);
   // Without LibTorch: the build cannot; with it: the model flag is missing
   // (deep_metrics_test.cc covers the LibTorch build further).
@@ -147,10 +143,10 @@ TEST(EvalCli, BadInputExitsTwoWithOneLine) {
   for (int i = 0; i < 3; ++i) b.Add(i, Rigid3d());
   WriteTumTrajectory(dir + "/a.txt", a);
   WriteTumTrajectory(dir + "/b.txt", b);
-  out =
-      RunEvalCli("--metrics ade,fde --pred-traj " + dir + "/a.txt --gt-traj " +
-                     dir + "/b.txt --out " + dir + "/r.json",
-                 &rc);
+  out = test::RunGeodriveEval("--metrics ade,fde --pred-traj " + dir +
+                                  "/a.txt --gt-traj " + dir + "/b.txt --out " +
+                                  dir + "/r.json",
+                              &rc);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("differ in length (predicted 4 poses, ground truth 3)"),
             std::string::npos)

@@ -48,15 +48,6 @@ std::string ErrorOf(Fn fn) {
   return "";
 }
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteAll(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
 cv::Mat RandomImage(int rows, int cols, int type) {
   cv::Mat image(rows, cols, type);
   cv::randu(image, cv::Scalar::all(0),
@@ -111,7 +102,7 @@ cv::Mat CvDecode(const std::string& bytes, int flags) {
 // IMREAD_COLOR (channels swapped), IMREAD_GRAYSCALE and IMREAD_UNCHANGED.
 void ExpectSameAsOpenCv(const std::string& path, const std::string& what) {
   SCOPED_TRACE(what);
-  const std::string bytes = ReadAll(path);
+  const std::string bytes = test::ReadFile(path);
   const cv::Mat bgr = CvDecode(bytes, cv::IMREAD_COLOR);
   ASSERT_FALSE(bgr.empty());
   cv::Mat rgb;
@@ -371,12 +362,13 @@ TEST(ImageIo, PngWritesAreDeterministic) {
     const cv::Mat image = RandomImage(64, 64, type);
     WriteImageRgb(dir + "/a.png", image);
     WriteImageRgb(dir + "/b.png", image);
-    EXPECT_EQ(ReadAll(dir + "/a.png"), ReadAll(dir + "/b.png")) << type;
+    EXPECT_EQ(test::ReadFile(dir + "/a.png"), test::ReadFile(dir + "/b.png"))
+        << type;
   }
   const cv::Mat smooth = SmoothImage(48, 80);
   WriteImageRgb(dir + "/a.jpg", smooth);
   WriteImageRgb(dir + "/b.jpg", smooth);
-  EXPECT_EQ(ReadAll(dir + "/a.jpg"), ReadAll(dir + "/b.jpg"));
+  EXPECT_EQ(test::ReadFile(dir + "/a.jpg"), test::ReadFile(dir + "/b.jpg"));
 }
 
 TEST(ImageIo, JpegRoundTripIsClose) {
@@ -405,20 +397,21 @@ TEST(ImageIo, JpegWritesAreByteIdenticalToOpenCvs) {
   std::vector<uint8_t> opencv;
   ASSERT_TRUE(
       cv::imencode(".jpg", bgr, opencv, {cv::IMWRITE_JPEG_QUALITY, 95}));
-  EXPECT_EQ(ReadAll(dir + "/rgb.jpg"),
+  EXPECT_EQ(test::ReadFile(dir + "/rgb.jpg"),
             std::string(opencv.begin(), opencv.end()));
   cv::Mat gray;
   cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
   WriteImageRgb(dir + "/gray.jpg", gray);
   ASSERT_TRUE(
       cv::imencode(".jpg", gray, opencv, {cv::IMWRITE_JPEG_QUALITY, 95}));
-  EXPECT_EQ(ReadAll(dir + "/gray.jpg"),
+  EXPECT_EQ(test::ReadFile(dir + "/gray.jpg"),
             std::string(opencv.begin(), opencv.end()));
   // RGBA: alpha dropped.
   cv::Mat rgba;
   cv::cvtColor(rgb, rgba, cv::COLOR_RGB2RGBA);
   WriteImageRgb(dir + "/rgba.jpg", rgba);
-  EXPECT_EQ(ReadAll(dir + "/rgba.jpg"), ReadAll(dir + "/rgb.jpg"));
+  EXPECT_EQ(test::ReadFile(dir + "/rgba.jpg"),
+            test::ReadFile(dir + "/rgb.jpg"));
 }
 
 TEST(ImageIo, EncodeJpegRgbIsOpenCvsImencodeAtEveryQuality) {
@@ -441,7 +434,8 @@ TEST(ImageIo, EncodeJpegRgbIsOpenCvsImencodeAtEveryQuality) {
   }
   WriteJpeg(dir + "/q90.jpg", rgb, 90);
   const std::vector<uint8_t> q90 = EncodeJpegRgb(rgb, 90);
-  EXPECT_EQ(ReadAll(dir + "/q90.jpg"), std::string(q90.begin(), q90.end()));
+  EXPECT_EQ(test::ReadFile(dir + "/q90.jpg"),
+            std::string(q90.begin(), q90.end()));
   EXPECT_THROW(EncodeJpegRgb(rgb, 0), InputError);
   EXPECT_THROW(EncodeJpegRgb(rgb, 101), InputError);
   EXPECT_THROW(EncodeJpegRgb(cv::Mat(), 90), InputError);
@@ -534,7 +528,7 @@ TEST(ImageIo, SyntheticJpegsDecodeExactlyAsOpenCv) {
   for (const auto& c : cases) {
     ASSERT_FALSE(c.bytes.empty()) << c.name;
     const std::string path = dir + "/" + c.name + ".jpg";
-    WriteAll(path, c.bytes);
+    test::WriteFile(path, c.bytes);
     ExpectSameAsOpenCv(path, c.name);
   }
   WriteImageRgb(dir + "/ours.jpg", rgb);
@@ -642,7 +636,7 @@ TEST(ImageIo, SyntheticPngsDecodeExactlyAsOpenCv) {
   }
   for (const Case& c : cases) {
     const std::string path = dir + "/" + c.name + ".png";
-    WriteAll(path, c.bytes);
+    test::WriteFile(path, c.bytes);
     ExpectSameAsOpenCv(path, c.name);
   }
   // The types OpenCV gives them, for the record.
@@ -667,13 +661,13 @@ TEST(ImageIo, ExifOrientationIsAppliedAsOpenCvDoes) {
           std::string(intel ? "ii" : "mm") + "_" + std::to_string(orientation);
       const std::string tiff =
           Tiff(intel, {OrientationEntry(intel, orientation)});
-      WriteAll(dir + "/" + name + ".jpg",
-               WithApp1(jpeg, std::string("Exif\0\0", 6) + tiff));
+      test::WriteFile(dir + "/" + name + ".jpg",
+                      WithApp1(jpeg, std::string("Exif\0\0", 6) + tiff));
       ExpectSameAsOpenCv(dir + "/" + name + ".jpg", name + ".jpg");
-      WriteAll(dir + "/" + name + ".png",
-               MakePng(rgb.cols, rgb.rows, 2, 8, samples,
-                       intel ? PngChunk("eXIf", tiff) : "",
-                       intel ? "" : PngChunk("eXIf", tiff)));
+      test::WriteFile(dir + "/" + name + ".png",
+                      MakePng(rgb.cols, rgb.rows, 2, 8, samples,
+                              intel ? PngChunk("eXIf", tiff) : "",
+                              intel ? "" : PngChunk("eXIf", tiff)));
       ExpectSameAsOpenCv(dir + "/" + name + ".png", name + ".png");
     }
   }
@@ -731,21 +725,22 @@ TEST(ImageIo, ExifOrientationIsAppliedAsOpenCvDoes) {
   };
   for (const auto& c : odd) {
     const std::string path = dir + "/" + c.name + ".jpg";
-    WriteAll(path, WithApp1(jpeg, c.app1));
+    test::WriteFile(path, WithApp1(jpeg, c.app1));
     ExpectSameAsOpenCv(path, c.name);
   }
   // OpenCV takes the first APP1 only: XMP first hides a later EXIF.
-  WriteAll(dir + "/xmp_then_exif.jpg",
-           WithApp1(WithApp1(jpeg, std::string("Exif\0\0", 6) +
-                                       Tiff(le, {OrientationEntry(le, 6)})),
-                    std::string("http://ns.adobe.com/xap/1.0/\0x", 30)));
+  test::WriteFile(
+      dir + "/xmp_then_exif.jpg",
+      WithApp1(WithApp1(jpeg, std::string("Exif\0\0", 6) +
+                                  Tiff(le, {OrientationEntry(le, 6)})),
+               std::string("http://ns.adobe.com/xap/1.0/\0x", 30)));
   ExpectSameAsOpenCv(dir + "/xmp_then_exif.jpg", "xmp_then_exif");
   EXPECT_EQ(ReadImageRgb(dir + "/xmp_then_exif.jpg").size(), rgb.size());
 }
 
 TEST(ImageIo, ScaledJpegDecodeMatchesOpenCvReduced) {
   const std::string path = test::RealDataPath(kNuscenesJpeg);
-  const std::string bytes = ReadAll(path);
+  const std::string bytes = test::ReadFile(path);
   const struct {
     int min_width, min_height, flags;
     cv::Size size;
@@ -770,7 +765,7 @@ TEST(ImageIo, ScaledJpegDecodeMatchesOpenCvReduced) {
   const std::string rotated =
       WithApp1(bytes, std::string("Exif\0\0", 6) +
                           Tiff(true, {OrientationEntry(true, 6)}));
-  WriteAll(dir + "/rot.jpg", rotated);
+  test::WriteFile(dir + "/rot.jpg", rotated);
   EXPECT_EQ(ReadImageRgbScaled(dir + "/rot.jpg", 225, 400).size(),
             cv::Size(225, 400));
   cv::Mat expected;
@@ -834,10 +829,10 @@ TEST(ImageIo, JpegDecodeAtAnyListedScale) {
   EXPECT_GT(10 * std::log10(255.0 * 255.0 * top.area() * 3 / (l2 * l2)), 35.0);
 
   const std::string dir = test::MakeTempDir("img_any_scale");
-  const std::string bytes = ReadAll(path);
-  WriteAll(dir + "/rot.jpg",
-           WithApp1(bytes, std::string("Exif\0\0", 6) +
-                               Tiff(true, {OrientationEntry(true, 6)})));
+  const std::string bytes = test::ReadFile(path);
+  test::WriteFile(dir + "/rot.jpg",
+                  WithApp1(bytes, std::string("Exif\0\0", 6) +
+                                      Tiff(true, {OrientationEntry(true, 6)})));
   const cv::Mat rotated = ReadImageRgbScaled(dir + "/rot.jpg", JpegScale{5, 8});
   EXPECT_EQ(rotated.size(), cv::Size(563, 1000));
   cv::Mat expected;
@@ -872,7 +867,7 @@ TEST(ImageIo, JpegWithCorruptScanDataIsRejected) {
   // 0xFF bytes (a run of 1 bits, not a Huffman code), EOI kept: libjpeg
   // decodes it "with warnings" and OpenCV returns a frame. (Flipped bits that
   // still form valid codes are not detectable at all: libjpeg resynchronizes.)
-  const std::string full = ReadAll(test::RealDataPath(kNuscenesJpeg));
+  const std::string full = test::ReadFile(test::RealDataPath(kNuscenesJpeg));
   const size_t start = ScanStart(full);
   ASSERT_NE(start, std::string::npos);
   std::string corrupt = full;
@@ -883,7 +878,7 @@ TEST(ImageIo, JpegWithCorruptScanDataIsRejected) {
   ASSERT_FALSE(CvDecode(corrupt, cv::IMREAD_COLOR).empty())
       << "OpenCV no longer accepts this file: the test lost its point";
   const std::string path = test::MakeTempDir("img_corrupt") + "/corrupt.jpg";
-  WriteAll(path, corrupt);
+  test::WriteFile(path, corrupt);
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(path); }),
               StartsWith(path + ": corrupt JPEG data (libjpeg warning: "));
   EXPECT_THAT(ErrorOf([&] { ReadImageGray(path); }), HasSubstr("libjpeg"));
@@ -895,7 +890,7 @@ TEST(ImageIo, JpegWithCorruptScanDataIsRejected) {
 TEST(ImageIo, JpegWithPrematureEndOfScanIsRejected) {
   // The scan cut in half, EOI appended: structurally complete, but libjpeg
   // warns "premature end of data segment" and pads the image with grey.
-  const std::string full = ReadAll(test::RealDataPath(kNuscenesJpeg));
+  const std::string full = test::ReadFile(test::RealDataPath(kNuscenesJpeg));
   const size_t start = ScanStart(full);
   std::string cut = full.substr(0, start + (full.size() - start) / 2);
   while (!cut.empty() && static_cast<unsigned char>(cut.back()) == 0xFF)
@@ -903,7 +898,7 @@ TEST(ImageIo, JpegWithPrematureEndOfScanIsRejected) {
   cut += "\xFF\xD9";
   ASSERT_FALSE(CvDecode(cut, cv::IMREAD_COLOR).empty());
   const std::string path = test::MakeTempDir("img_premature") + "/cut.jpg";
-  WriteAll(path, cut);
+  test::WriteFile(path, cut);
   EXPECT_EQ(ErrorOf([&] { ReadImageRgb(path); }),
             path +
                 ": corrupt JPEG data (libjpeg warning: Corrupt JPEG data: "
@@ -922,7 +917,7 @@ TEST(ImageIo, HugeJpegHeaderIsRejectedBeforeAllocating) {
   }
   jpeg.replace(sof + 5, 4, Be16(20000) + Be16(20000));
   const std::string path = test::MakeTempDir("img_huge_jpeg") + "/huge.jpg";
-  WriteAll(path, jpeg);
+  test::WriteFile(path, jpeg);
   const long rss_before = MaxRssKb();  // NOLINT(runtime/int)
   const auto t0 = std::chrono::steady_clock::now();
   const std::string expected =
@@ -940,7 +935,7 @@ TEST(ImageIo, HugeJpegHeaderIsRejectedBeforeAllocating) {
   EXPECT_LT(MaxRssKb() - rss_before, 100 * 1024);
   // Within the limits the same trick reaches the decoder, which fails cleanly.
   jpeg.replace(sof + 5, 4, Be16(300) + Be16(200));
-  WriteAll(path, jpeg);
+  test::WriteFile(path, jpeg);
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(path); }), HasSubstr("libjpeg"));
 }
 
@@ -950,7 +945,7 @@ TEST(ImageIo, HugePngHeaderIsRejected) {
   // IHDR declares 100000 x 100000 (CRC fixed, so only the size is wrong).
   const std::string ihdr = Be32(100000) + Be32(100000) + png.substr(24, 5);
   png.replace(8, 25, PngChunk("IHDR", ihdr));
-  WriteAll(dir + "/huge.png", png);
+  test::WriteFile(dir + "/huge.png", png);
   const long rss_before = MaxRssKb();  // NOLINT(runtime/int)
   const std::string expected =
       dir +
@@ -962,7 +957,7 @@ TEST(ImageIo, HugePngHeaderIsRejected) {
   // 16384 x 16385: one side over.
   png.replace(8, 25,
               PngChunk("IHDR", Be32(16384) + Be32(16385) + png.substr(24, 5)));
-  WriteAll(dir + "/tall.png", png);
+  test::WriteFile(dir + "/tall.png", png);
   EXPECT_THAT(ErrorOf([&] { ReadImageGray(dir + "/tall.png"); }),
               HasSubstr("16384x16385 pixels is over the reader's limit"));
 }
@@ -971,20 +966,21 @@ TEST(ImageIo, PngWithBadCrcIsRejected) {
   const std::string dir = test::MakeTempDir("img_crc");
   const std::vector<int> samples = RandomSamples(3 * 8 * 5, 255);
   const std::string good = MakePng(8, 5, 2, 8, samples);
-  ASSERT_NO_THROW(
-      ReadImageRgb((WriteAll(dir + "/good.png", good), dir + "/good.png")));
+  ASSERT_NO_THROW(ReadImageRgb(
+      (test::WriteFile(dir + "/good.png", good), dir + "/good.png")));
   // IDAT's CRC (the 4 bytes before IEND's 12).
   std::string bad = good;
   bad[bad.size() - 13] ^= 1;
-  WriteAll(dir + "/idat_crc.png", bad);
+  test::WriteFile(dir + "/idat_crc.png", bad);
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(dir + "/idat_crc.png"); }),
               StartsWith(dir + "/idat_crc.png: cannot decode PNG (libspng: "));
   // An ancillary chunk's CRC, before and after the image data (libpng and
   // OpenCV would drop the chunk and carry on).
   std::string text = PngChunk("tEXt", std::string("Comment\0hello", 13));
   text[text.size() - 1] ^= 1;
-  WriteAll(dir + "/text_before.png", MakePng(8, 5, 2, 8, samples, text));
-  WriteAll(dir + "/text_after.png", MakePng(8, 5, 2, 8, samples, "", text));
+  test::WriteFile(dir + "/text_before.png", MakePng(8, 5, 2, 8, samples, text));
+  test::WriteFile(dir + "/text_after.png",
+                  MakePng(8, 5, 2, 8, samples, "", text));
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(dir + "/text_before.png"); }),
               HasSubstr("cannot decode PNG (libspng: "));
   EXPECT_THAT(ErrorOf([&] { ReadImageUnchanged(dir + "/text_after.png"); }),
@@ -998,23 +994,23 @@ TEST(ImageIo, PngWithBadCrcIsRejected) {
   std::string body = adler.substr(idat + 4, idat_len);
   body[body.size() - 1] ^= 1;
   adler.replace(idat - 4, 12 + idat_len, PngChunk("IDAT", body));
-  WriteAll(dir + "/adler.png", adler);
+  test::WriteFile(dir + "/adler.png", adler);
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(dir + "/adler.png"); }),
               HasSubstr("cannot decode PNG (libspng: "));
 }
 
 TEST(ImageIo, FailuresPrintNothing) {
   const std::string dir = test::MakeTempDir("img_quiet");
-  const std::string full = ReadAll(test::RealDataPath(kNuscenesJpeg));
+  const std::string full = test::ReadFile(test::RealDataPath(kNuscenesJpeg));
   const size_t start = ScanStart(full);
-  WriteAll(dir + "/cut.jpg",
-           full.substr(0, start + 5000) + std::string("\xFF\xD9", 2));
-  std::string png = ReadAll(test::RealDataPath(kKittiPng));
+  test::WriteFile(dir + "/cut.jpg",
+                  full.substr(0, start + 5000) + std::string("\xFF\xD9", 2));
+  std::string png = test::ReadFile(test::RealDataPath(kKittiPng));
   png[png.size() / 2] ^= 0x40;
-  WriteAll(dir + "/bad.png", png);
-  WriteAll(dir + "/junk.jpg", std::string("\xFF\xD8\xFF\xE0\x00\x04"
-                                          "ab\xFF\xD9",
-                                          10));
+  test::WriteFile(dir + "/bad.png", png);
+  test::WriteFile(dir + "/junk.jpg", std::string("\xFF\xD8\xFF\xE0\x00\x04"
+                                                 "ab\xFF\xD9",
+                                                 10));
   ::testing::internal::CaptureStderr();
   ::testing::internal::CaptureStdout();
   for (const char* name : {"/cut.jpg", "/bad.png", "/junk.jpg"}) {
@@ -1037,12 +1033,12 @@ TEST(ImageIo, MissingFileSaysCannotOpen) {
 
 TEST(ImageIo, NonImageFileIsRejected) {
   const std::string dir = test::MakeTempDir("img_not_image");
-  WriteAll(dir + "/notes.png", "this is a text file, not a PNG\n");
+  test::WriteFile(dir + "/notes.png", "this is a text file, not a PNG\n");
   EXPECT_EQ(
       ErrorOf([&] { ReadImageRgb(dir + "/notes.png"); }),
       dir +
           "/notes.png: not a readable image (unknown format or corrupt data)");
-  WriteAll(dir + "/empty.jpg", "");
+  test::WriteFile(dir + "/empty.jpg", "");
   EXPECT_EQ(ErrorOf([&] { ReadImageGray(dir + "/empty.jpg"); }),
             dir + "/empty.jpg: empty file (expected an image)");
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(dir); }),
@@ -1053,24 +1049,24 @@ TEST(ImageIo, TruncatedJpegIsRejected) {
   // libjpeg only warns ("Premature end of JPEG file") and returns a half-grey
   // image; the reader must refuse it instead.
   const std::string path = test::MakeTempDir("img_trunc_jpeg") + "/cut.jpg";
-  const std::string full = ReadAll(test::RealDataPath(kNuscenesJpeg));
+  const std::string full = test::ReadFile(test::RealDataPath(kNuscenesJpeg));
   for (size_t keep :
        {full.size() / 2, full.size() - 2, size_t{1000}, size_t{3}}) {
-    WriteAll(path, full.substr(0, keep));
+    test::WriteFile(path, full.substr(0, keep));
     EXPECT_EQ(ErrorOf([&] { ReadImageRgb(path); }),
               path + ": truncated or corrupt JPEG (no end-of-image marker)")
         << keep;
   }
-  WriteAll(path, full.substr(0, full.size() / 2));
+  test::WriteFile(path, full.substr(0, full.size() / 2));
   EXPECT_THAT(ErrorOf([&] { ReadImageSize(path); }), HasSubstr("truncated"));
 }
 
 TEST(ImageIo, TruncatedPngIsRejected) {
   const std::string path = test::MakeTempDir("img_trunc_png") + "/cut.png";
-  const std::string full = ReadAll(test::RealDataPath(kKittiPng));
+  const std::string full = test::ReadFile(test::RealDataPath(kKittiPng));
   for (size_t keep :
        {full.size() / 2, full.size() - 1, size_t{40}, size_t{9}}) {
-    WriteAll(path, full.substr(0, keep));
+    test::WriteFile(path, full.substr(0, keep));
     EXPECT_EQ(ErrorOf([&] { ReadImageRgb(path); }),
               path + ": truncated or corrupt PNG (no IEND chunk)")
         << keep;
@@ -1080,7 +1076,7 @@ TEST(ImageIo, TruncatedPngIsRejected) {
   std::string corrupt = full;
   for (size_t i = 200; i < 2000; ++i)
     corrupt[i] = static_cast<char>(corrupt[i] ^ 0x5a);
-  WriteAll(path, corrupt);
+  test::WriteFile(path, corrupt);
   EXPECT_THAT(ErrorOf([&] { ReadImageRgb(path); }),
               StartsWith(path + ": cannot decode PNG (libspng: "));
 }

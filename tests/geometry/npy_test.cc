@@ -76,15 +76,6 @@ NpyArray PatternArray(NpyDtype dtype, const std::vector<int64_t>& shape) {
   return a;
 }
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteAll(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
 // A v1 .npy file with the given header dict (padded like numpy) followed by
 // `data`.
 std::string MakeNpy(const std::string& dict,
@@ -137,7 +128,7 @@ TEST(Npy, WritesNumpyHeaderByteForByte) {
   const std::string dir = test::MakeTempDir("npy_header");
   const std::string path = dir + "/frame.npy";
   WriteNpy(path, NpyArray::Zeros(NpyDtype::kFloat32, {288, 512}));
-  const std::string bytes = ReadAll(path);
+  const std::string bytes = test::ReadFile(path);
   ASSERT_EQ(bytes.size(), 128u + 288 * 512 * 4);
   std::string dict =
       "{'descr': '<f4', 'fortran_order': False, 'shape': (288, 512), }";
@@ -196,7 +187,7 @@ TEST(Npy, ReadsHandMadeFortranOrderFile) {
   // [[1, 2, 3], [4, 5, 6]] stored column-major: 1 4 2 5 3 6.
   const int32_t column_major[] = {1, 4, 2, 5, 3, 6};
   const std::string path = test::MakeTempDir("npy_fortran") + "/f.npy";
-  WriteAll(
+  test::WriteFile(
       path,
       MakeNpy("{'descr': '<i4', 'fortran_order': True, 'shape': (2, 3), }",
               std::string(reinterpret_cast<const char*>(column_major), 24)));
@@ -209,15 +200,17 @@ TEST(Npy, ReadsHandMadeFortranOrderFile) {
 TEST(Npy, ReadsHandMadeBigEndianFile) {
   // 1.5f = 0x3FC00000 and -2.0f = 0xC0000000, big-endian; 258 as >u2 = 01 02.
   const std::string dir = test::MakeTempDir("npy_big");
-  WriteAll(dir + "/f.npy",
-           MakeNpy("{'descr': '>f4', 'fortran_order': False, 'shape': (2,), }",
-                   std::string("\x3F\xC0\x00\x00\xC0\x00\x00\x00", 8)));
+  test::WriteFile(
+      dir + "/f.npy",
+      MakeNpy("{'descr': '>f4', 'fortran_order': False, 'shape': (2,), }",
+              std::string("\x3F\xC0\x00\x00\xC0\x00\x00\x00", 8)));
   const NpyArray f = ReadNpy(dir + "/f.npy");
   EXPECT_EQ(f.Data<float>()[0], 1.5f);
   EXPECT_EQ(f.Data<float>()[1], -2.0f);
-  WriteAll(dir + "/u.npy",
-           MakeNpy("{'descr': '>u2', 'fortran_order': False, 'shape': (1,), }",
-                   std::string("\x01\x02", 2)));
+  test::WriteFile(
+      dir + "/u.npy",
+      MakeNpy("{'descr': '>u2', 'fortran_order': False, 'shape': (1,), }",
+              std::string("\x01\x02", 2)));
   EXPECT_EQ(ReadNpy(dir + "/u.npy").Data<uint16_t>()[0], 258);
 }
 
@@ -229,7 +222,7 @@ TEST(Npy, ZeroDimensionalAndEmptyArrays) {
   EXPECT_TRUE(s.shape.empty());
   EXPECT_EQ(s.NumElements(), 1);
   EXPECT_EQ(s.Data<double>()[0], pi);
-  EXPECT_EQ(ReadAll(dir + "/scalar.npy").substr(10, 55),
+  EXPECT_EQ(test::ReadFile(dir + "/scalar.npy").substr(10, 55),
             "{'descr': '<f8', 'fortran_order': False, 'shape': (), }");
 
   for (const std::vector<int64_t>& shape :
@@ -246,9 +239,9 @@ TEST(Npy, ZeroDimensionalAndEmptyArrays) {
 
 TEST(Npy, BoolValuesAreNormalisedToZeroOrOne) {
   const std::string path = test::MakeTempDir("npy_bool") + "/b.npy";
-  WriteAll(path,
-           MakeNpy("{'descr': '|b1', 'fortran_order': False, 'shape': (3,), }",
-                   std::string("\x00\x01\x07", 3)));
+  test::WriteFile(
+      path, MakeNpy("{'descr': '|b1', 'fortran_order': False, 'shape': (3,), }",
+                    std::string("\x00\x01\x07", 3)));
   const NpyArray a = ReadNpy(path);
   EXPECT_EQ(a.dtype, NpyDtype::kBool);
   EXPECT_EQ(a.bytes, (std::vector<uint8_t>{0, 1, 1}));
@@ -342,7 +335,7 @@ TEST(Npy, MissingFileSaysCannotOpen) {
 
 TEST(Npy, TruncatedDataNamesFileAndSizes) {
   const std::string path = test::MakeTempDir("npy_truncated") + "/frame.npy";
-  WriteAll(
+  test::WriteFile(
       path,
       MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (480, 640), }",
               std::string(100, '\0')));
@@ -358,18 +351,18 @@ TEST(Npy, TruncatedHeaderAndPreamble) {
   const std::string full =
       MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (2,), }",
               std::string(8, '\0'));
-  WriteAll(dir + "/a.npy", full.substr(0, 40));
+  test::WriteFile(dir + "/a.npy", full.substr(0, 40));
   EXPECT_THAT(ReadError(dir + "/a.npy"), StartsWith(dir + "/a.npy: truncated"));
-  WriteAll(dir + "/b.npy", full.substr(0, 8));
+  test::WriteFile(dir + "/b.npy", full.substr(0, 8));
   EXPECT_THAT(ReadError(dir + "/b.npy"), StartsWith(dir + "/b.npy: truncated"));
 }
 
 TEST(Npy, BadMagicSaysNotNpy) {
   const std::string dir = test::MakeTempDir("npy_magic");
-  WriteAll(dir + "/text.npy", "hello, this is not numpy data at all\n");
+  test::WriteFile(dir + "/text.npy", "hello, this is not numpy data at all\n");
   EXPECT_THAT(ReadError(dir + "/text.npy"),
               StartsWith(dir + "/text.npy: not a .npy file"));
-  WriteAll(dir + "/empty.npy", "");
+  test::WriteFile(dir + "/empty.npy", "");
   EXPECT_THAT(ReadError(dir + "/empty.npy"),
               StartsWith(dir + "/empty.npy: not a .npy file"));
 }
@@ -380,7 +373,7 @@ TEST(Npy, UnsupportedVersionIsRejected) {
       MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (1,), }",
               std::string(4, '\0'));
   bytes[6] = 9;
-  WriteAll(path, bytes);
+  test::WriteFile(path, bytes);
   EXPECT_THAT(ReadError(path),
               HasSubstr(": unsupported .npy format version 9.0"));
 }
@@ -410,7 +403,7 @@ TEST(Npy, BadHeaderDictsAreRejected) {
   int i = 0;
   for (const char* dict : dicts) {
     const std::string path = dir + "/d" + std::to_string(i++) + ".npy";
-    WriteAll(path, MakeNpy(dict, std::string(8, '\0')));
+    test::WriteFile(path, MakeNpy(dict, std::string(8, '\0')));
     EXPECT_THAT(ReadError(path), StartsWith(path + ": bad header dict: "))
         << dict;
   }
@@ -420,7 +413,7 @@ TEST(Npy, AcceptsNumpyDialectsOfTheHeader) {
   // Keys in any order, double quotes, Python 2 'L' suffixes, no trailing comma,
   // v2 preamble.
   const std::string dir = test::MakeTempDir("npy_dialects");
-  WriteAll(
+  test::WriteFile(
       dir + "/a.npy",
       MakeNpy(
           "{\"shape\": (2L, 1L), \"fortran_order\": False, \"descr\": \"<u2\"}",
@@ -435,14 +428,15 @@ TEST(Npy, UnsupportedDtypesAreRejected) {
   const char* descrs[] = {"<c8", "<U10", "|O", "<i2", "<M8[ns]"};
   for (const char* descr : descrs) {
     const std::string path = dir + "/t.npy";
-    WriteAll(path, MakeNpy(std::string("{'descr': '") + descr +
-                               "', 'fortran_order': False, 'shape': (1,), }",
-                           std::string(16, '\0')));
+    test::WriteFile(path,
+                    MakeNpy(std::string("{'descr': '") + descr +
+                                "', 'fortran_order': False, 'shape': (1,), }",
+                            std::string(16, '\0')));
     EXPECT_THAT(ReadError(path),
                 StartsWith(path + ": unsupported dtype '" + descr + "'"));
   }
   const std::string path = dir + "/structured.npy";
-  WriteAll(
+  test::WriteFile(
       path,
       MakeNpy("{'descr': [('x', '<f4'), ('y', '<f4')], 'fortran_order': False, "
               "'shape': (1,), }",
@@ -458,11 +452,12 @@ TEST(Npy, EmptyArrayWithHugeOtherAxes) {
   const std::vector<int64_t> shape = {4,   32, 64, 2,      364, 32, 64, 2,
                                       366, 66, 2,  366632, 0,   34, 6};
   for (const char* order : {"False", "True"}) {
-    WriteAll(dir + "/e.npy",
-             MakeNpy(std::string("{'descr': '<f8', 'fortran_order': ") + order +
-                         ", 'shape': (4, 32 ,64, 2, 364, 32 ,64, 2, 366,66, "
-                         "2, 366632 ,00000, 34, 6), }",
-                     ""));
+    test::WriteFile(
+        dir + "/e.npy",
+        MakeNpy(std::string("{'descr': '<f8', 'fortran_order': ") + order +
+                    ", 'shape': (4, 32 ,64, 2, 364, 32 ,64, 2, 366,66, "
+                    "2, 366632 ,00000, 34, 6), }",
+                ""));
     const NpyArray a = ReadNpy(dir + "/e.npy");
     EXPECT_EQ(a.shape, shape) << order;
     EXPECT_EQ(a.NumElements(), 0) << order;
@@ -475,21 +470,22 @@ TEST(Npy, EmptyArrayWithHugeOtherAxes) {
 
 TEST(Npy, ShapeAndSizeOverflowAreRejected) {
   const std::string dir = test::MakeTempDir("npy_overflow");
-  WriteAll(dir + "/a.npy", MakeNpy("{'descr': '<f8', 'fortran_order': False, "
-                                   "'shape': (99999999999999999999,), }",
-                                   ""));
+  test::WriteFile(dir + "/a.npy",
+                  MakeNpy("{'descr': '<f8', 'fortran_order': False, "
+                          "'shape': (99999999999999999999,), }",
+                          ""));
   EXPECT_THAT(ReadError(dir + "/a.npy"),
               StartsWith(dir + "/a.npy: shape overflows"));
-  WriteAll(dir + "/b.npy",
-           MakeNpy("{'descr': '<f8', 'fortran_order': False, 'shape': "
-                   "(4294967296, 4294967296), }",
-                   ""));
+  test::WriteFile(dir + "/b.npy",
+                  MakeNpy("{'descr': '<f8', 'fortran_order': False, 'shape': "
+                          "(4294967296, 4294967296), }",
+                          ""));
   EXPECT_THAT(ReadError(dir + "/b.npy"),
               StartsWith(dir + "/b.npy: shape overflows"));
-  WriteAll(dir + "/c.npy",
-           MakeNpy("{'descr': '<f8', 'fortran_order': False, 'shape': "
-                   "(2305843009213693952,), }",
-                   ""));  // 2^61 elements x 8 bytes = 2^64 bytes
+  test::WriteFile(dir + "/c.npy",
+                  MakeNpy("{'descr': '<f8', 'fortran_order': False, 'shape': "
+                          "(2305843009213693952,), }",
+                          ""));  // 2^61 elements x 8 bytes = 2^64 bytes
   EXPECT_THAT(ReadError(dir + "/c.npy"),
               StartsWith(dir + "/c.npy: size overflows"));
 }
@@ -497,10 +493,11 @@ TEST(Npy, ShapeAndSizeOverflowAreRejected) {
 TEST(Npy, AbsurdSizesExceedMaxBytes) {
   const std::string path = test::MakeTempDir("npy_absurd") + "/huge.npy";
   // 1e6 x 1e6 float32 = 4 TB: refused before any allocation.
-  WriteAll(path, MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': "
-                         "(1000000, 1000000), "
-                         "}",
-                         std::string(64, '\0')));
+  test::WriteFile(path,
+                  MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': "
+                          "(1000000, 1000000), "
+                          "}",
+                          std::string(64, '\0')));
   EXPECT_THAT(ReadError(path),
               StartsWith(path + ": array of 4000000000000 bytes"));
   EXPECT_THAT(ReadError(path),

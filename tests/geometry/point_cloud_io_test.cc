@@ -45,15 +45,6 @@ std::string ErrorOf(Fn fn) {
   return "";
 }
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteAll(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
 // A cloud with every optional attribute filled with random values.
 PointCloud RandomCloud(size_t n, bool all_attributes = true) {
   std::uniform_real_distribution<float> pos(-80.f, 80.f), unit(0.f, 1.f);
@@ -137,8 +128,8 @@ TEST(KittiVelodyneBin, ReadsRealScan) {
 TEST(NuscenesLidarBin, SizeNotMultipleOf20NamesFileAndSize) {
   const std::string path =
       test::MakeTempDir("nusc_bad_size") + "/sweep.pcd.bin";
-  std::string bytes = ReadAll(test::RealDataPath(kNuscenesSweep));
-  WriteAll(path, bytes.substr(0, 693761 - 1 - 7));  // 693753 bytes
+  std::string bytes = test::ReadFile(test::RealDataPath(kNuscenesSweep));
+  test::WriteFile(path, bytes.substr(0, 693761 - 1 - 7));  // 693753 bytes
   EXPECT_EQ(ErrorOf([&] { ReadNuscenesLidarBin(path); }),
             path +
                 ": size 693753 bytes is not a multiple of 20 (float32 x 5 per "
@@ -154,8 +145,8 @@ TEST(NuscenesLidarBin, RoundTripIsExactAndMatchesInputBytes) {
   const PointCloud cloud =
       ReadNuscenesLidarBin(test::RealDataPath(kNuscenesSweep));
   WriteNuscenesLidarBin(dir + "/copy.pcd.bin", cloud);
-  EXPECT_EQ(ReadAll(dir + "/copy.pcd.bin"),
-            ReadAll(test::RealDataPath(kNuscenesSweep)));
+  EXPECT_EQ(test::ReadFile(dir + "/copy.pcd.bin"),
+            test::ReadFile(test::RealDataPath(kNuscenesSweep)));
   ExpectSameCloud(cloud, ReadNuscenesLidarBin(dir + "/copy.pcd.bin"));
 }
 
@@ -163,20 +154,20 @@ TEST(KittiVelodyneBin, RoundTripIsExactAndMatchesInputBytes) {
   const std::string dir = test::MakeTempDir("kitti_roundtrip");
   const PointCloud cloud = ReadKittiVelodyneBin(test::RealDataPath(kKittiScan));
   WriteKittiVelodyneBin(dir + "/copy.bin", cloud);
-  EXPECT_EQ(ReadAll(dir + "/copy.bin"),
-            ReadAll(test::RealDataPath(kKittiScan)));
+  EXPECT_EQ(test::ReadFile(dir + "/copy.bin"),
+            test::ReadFile(test::RealDataPath(kKittiScan)));
 }
 
 TEST(NuscenesLidarBin, RejectsNonFiniteAndMissing) {
   const std::string dir = test::MakeTempDir("nusc_nan");
   const float values[10] = {1, 2, 3, 4, 5, 1, NAN, 3, 4, 5};
-  WriteAll(dir + "/nan.pcd.bin",
-           std::string(reinterpret_cast<const char*>(values), 40));
+  test::WriteFile(dir + "/nan.pcd.bin",
+                  std::string(reinterpret_cast<const char*>(values), 40));
   EXPECT_EQ(ErrorOf([&] { ReadNuscenesLidarBin(dir + "/nan.pcd.bin"); }),
             dir + "/nan.pcd.bin: point 1 has a non-finite coordinate (nan)");
   EXPECT_EQ(ErrorOf([&] { ReadNuscenesLidarBin(dir + "/missing.pcd.bin"); }),
             dir + "/missing.pcd.bin: cannot open (No such file or directory)");
-  WriteAll(dir + "/empty.pcd.bin", "");
+  test::WriteFile(dir + "/empty.pcd.bin", "");
   EXPECT_TRUE(ReadNuscenesLidarBin(dir + "/empty.pcd.bin").empty());
 }
 
@@ -199,7 +190,7 @@ TEST(Ply, BinaryRoundTripKeepsEveryAttribute) {
   const std::string path = test::MakeTempDir("ply_binary") + "/cloud.ply";
   const PointCloud cloud = RandomCloud(1000);
   WritePly(path, cloud);
-  EXPECT_THAT(ReadAll(path),
+  EXPECT_THAT(test::ReadFile(path),
               StartsWith("ply\nformat binary_little_endian 1.0\n"));
   ExpectSameCloud(cloud, ReadPly(path));
 }
@@ -208,7 +199,7 @@ TEST(Ply, AsciiRoundTripKeepsEveryAttribute) {
   const std::string path = test::MakeTempDir("ply_ascii") + "/cloud.ply";
   const PointCloud cloud = RandomCloud(200);
   WritePly(path, cloud, /*binary=*/false);
-  EXPECT_THAT(ReadAll(path), StartsWith("ply\nformat ascii 1.0\n"));
+  EXPECT_THAT(test::ReadFile(path), StartsWith("ply\nformat ascii 1.0\n"));
   ExpectSameCloud(cloud, ReadPly(path));  // %.9g round-trips float32 exactly
 }
 
@@ -244,7 +235,7 @@ TEST(PointCloudIo, FootprintsRoundTripInPlyAndPcd) {
     }
   }
   WritePly(dir + "/c.ply", cloud, /*binary=*/false);
-  const std::string text = ReadAll(dir + "/c.ply");
+  const std::string text = test::ReadFile(dir + "/c.ply");
   EXPECT_THAT(text, HasSubstr("property float footprint\n"
                               "property float footprint_ux\n"));
   EXPECT_THAT(text, HasSubstr("property float footprint_vz\nend_header\n"));
@@ -257,15 +248,15 @@ TEST(PointCloudIo, FootprintsRoundTripInPlyAndPcd) {
       "property float footprint_ux\nproperty float footprint_uy\n"
       "property float footprint_uz\nproperty float footprint_vx\n"
       "property float footprint_vy\nend_header\n";
-  WriteAll(dir + "/five.ply", header +
-                                  "0 0 1 0.25 1 2 3 4 5\n"
-                                  "1 0 1 0 1 2 3 4 5\n");
+  test::WriteFile(dir + "/five.ply", header +
+                                         "0 0 1 0.25 1 2 3 4 5\n"
+                                         "1 0 1 0 1 2 3 4 5\n");
   const PointCloud five = ReadPly(dir + "/five.ply");
   EXPECT_EQ(five.footprints, (std::vector<float>{0.25f, 0.f}));
   EXPECT_TRUE(five.footprint_u.empty());
-  WriteAll(dir + "/neg.ply", header +
-                                 "0 0 1 0.25 1 2 3 4 5\n"
-                                 "1 0 1 -1 1 2 3 4 5\n");
+  test::WriteFile(dir + "/neg.ply", header +
+                                        "0 0 1 0.25 1 2 3 4 5\n"
+                                        "1 0 1 -1 1 2 3 4 5\n");
   EXPECT_THAT(ErrorOf([&] { ReadPly(dir + "/neg.ply"); }),
               StartsWith(dir + "/neg.ply: point 1 has footprint -1"));
 }
@@ -284,7 +275,7 @@ TEST(Ply, ReadsHandWrittenAsciiFileFromAnotherTool) {
   // Property types other tools use (double positions, uchar colours, extra
   // unknown properties, a face element).
   const std::string path = test::MakeTempDir("ply_foreign") + "/foreign.ply";
-  WriteAll(
+  test::WriteFile(
       path,
       "ply\nformat ascii 1.0\ncomment made by hand\nelement vertex 2\n"
       "property double x\nproperty double y\nproperty double z\nproperty float "
@@ -311,27 +302,28 @@ TEST(Ply, BadFilesNameTheFile) {
   const std::string dir = test::MakeTempDir("ply_bad");
   EXPECT_EQ(ErrorOf([&] { ReadPly(dir + "/missing.ply"); }),
             dir + "/missing.ply: cannot open (No such file or directory)");
-  WriteAll(dir + "/text.ply", "this is not a ply file\n");
+  test::WriteFile(dir + "/text.ply", "this is not a ply file\n");
   EXPECT_EQ(ErrorOf([&] { ReadPly(dir + "/text.ply"); }),
             dir + "/text.ply: not a PLY file");
-  WriteAll(dir + "/empty.ply", "");
+  test::WriteFile(dir + "/empty.ply", "");
   EXPECT_THAT(ErrorOf([&] { ReadPly(dir + "/empty.ply"); }),
               StartsWith(dir + "/empty.ply: "));
   // Binary body cut short.
   WritePly(dir + "/full.ply", RandomCloud(100));
-  const std::string full = ReadAll(dir + "/full.ply");
-  WriteAll(dir + "/truncated.ply", full.substr(0, full.size() - 500));
+  const std::string full = test::ReadFile(dir + "/full.ply");
+  test::WriteFile(dir + "/truncated.ply", full.substr(0, full.size() - 500));
   EXPECT_THAT(ErrorOf([&] { ReadPly(dir + "/truncated.ply"); }),
               StartsWith(dir + "/truncated.ply: "));
   // Header without end_header.
-  WriteAll(dir + "/header.ply",
-           "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n");
+  test::WriteFile(
+      dir + "/header.ply",
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n");
   EXPECT_THAT(ErrorOf([&] { ReadPly(dir + "/header.ply"); }),
               StartsWith(dir + "/header.ply: "));
   // No x/y/z.
-  WriteAll(dir + "/noxyz.ply",
-           "ply\nformat ascii 1.0\nelement vertex 1\nproperty float "
-           "a\nend_header\n1\n");
+  test::WriteFile(dir + "/noxyz.ply",
+                  "ply\nformat ascii 1.0\nelement vertex 1\nproperty float "
+                  "a\nend_header\n1\n");
   EXPECT_THAT(ErrorOf([&] { ReadPly(dir + "/noxyz.ply"); }),
               StartsWith(dir + "/noxyz.ply: "));
 }
@@ -340,7 +332,7 @@ TEST(Pcd, BinaryRoundTripKeepsEveryAttribute) {
   const std::string path = test::MakeTempDir("pcd_binary") + "/cloud.pcd";
   const PointCloud cloud = RandomCloud(1000);
   WritePcd(path, cloud);
-  EXPECT_THAT(ReadAll(path), HasSubstr("\nDATA binary\n"));
+  EXPECT_THAT(test::ReadFile(path), HasSubstr("\nDATA binary\n"));
   ExpectSameCloud(cloud, ReadPcd(path));
 }
 
@@ -348,7 +340,7 @@ TEST(Pcd, AsciiRoundTripKeepsEveryAttribute) {
   const std::string path = test::MakeTempDir("pcd_ascii") + "/cloud.pcd";
   const PointCloud cloud = RandomCloud(100);
   WritePcd(path, cloud, /*binary=*/false);
-  EXPECT_THAT(ReadAll(path), HasSubstr("\nDATA ascii\n"));
+  EXPECT_THAT(test::ReadFile(path), HasSubstr("\nDATA ascii\n"));
   ExpectSameCloud(cloud, ReadPcd(path));
 }
 
@@ -359,13 +351,14 @@ TEST(Pcd, AsciiRoundTripKeepsEveryAttribute) {
 TEST(Pcd, ReadsHandWrittenXyziFileNanOnlyDroppedWhenOrganised) {
   const std::string dir = test::MakeTempDir("pcd_foreign");
   auto write = [&](const std::string& name, const char* size) {
-    WriteAll(dir + "/" + name,
-             std::string("# .PCD v0.7 - Point Cloud Data file format\n"
-                         "VERSION 0.7\nFIELDS x y z intensity\n"
-                         "SIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\n") +
-                 size +
-                 "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 10\n"
-                 "nan nan nan 0\n4 5 6 20\n");
+    test::WriteFile(
+        dir + "/" + name,
+        std::string("# .PCD v0.7 - Point Cloud Data file format\n"
+                    "VERSION 0.7\nFIELDS x y z intensity\n"
+                    "SIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\n") +
+            size +
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3 10\n"
+            "nan nan nan 0\n4 5 6 20\n");
   };
   write("scan.pcd", "WIDTH 3\nHEIGHT 1\n");
   EXPECT_EQ(ErrorOf([&] { ReadPcd(dir + "/scan.pcd"); }),
@@ -391,12 +384,12 @@ TEST(Pcd, BadFilesNameTheFile) {
   const std::string dir = test::MakeTempDir("pcd_bad");
   EXPECT_EQ(ErrorOf([&] { ReadPcd(dir + "/missing.pcd"); }),
             dir + "/missing.pcd: cannot open (No such file or directory)");
-  WriteAll(dir + "/text.pcd", "hello\n");
+  test::WriteFile(dir + "/text.pcd", "hello\n");
   EXPECT_THAT(ErrorOf([&] { ReadPcd(dir + "/text.pcd"); }),
               StartsWith(dir + "/text.pcd: "));
   WritePcd(dir + "/full.pcd", RandomCloud(100));
-  const std::string full = ReadAll(dir + "/full.pcd");
-  WriteAll(dir + "/truncated.pcd", full.substr(0, full.size() - 700));
+  const std::string full = test::ReadFile(dir + "/full.pcd");
+  test::WriteFile(dir + "/truncated.pcd", full.substr(0, full.size() - 700));
   EXPECT_THAT(ErrorOf([&] { ReadPcd(dir + "/truncated.pcd"); }),
               StartsWith(dir + "/truncated.pcd: "));
 }
@@ -458,11 +451,11 @@ namespace {
 void ExpectEveryPrefixFailsCleanly(const std::string& full_path,
                                    const std::string& ext,
                                    PointCloud (*read)(const std::string&)) {
-  const std::string full = ReadAll(full_path);
+  const std::string full = test::ReadFile(full_path);
   const std::string cut = full_path + ".cut" + ext;
   int errors = 0;
   for (size_t len = 0; len < full.size(); len += 13) {
-    WriteAll(cut, full.substr(0, len));
+    test::WriteFile(cut, full.substr(0, len));
     try {
       // Only a cut inside the last ASCII number can go unnoticed: never a lost
       // point.
@@ -515,7 +508,7 @@ TEST(Ply, NumpyParsesOurBinaryPly) {
               a.MutableData<int32_t>());
     return a;
   }());
-  WriteAll(dir + "/check.py", R"(import sys, numpy as np
+  test::WriteFile(dir + "/check.py", R"(import sys, numpy as np
 d = sys.argv[1]
 raw = open(d + '/cloud.ply', 'rb').read()
 end = raw.index(b'end_header\n') + len(b'end_header\n')
@@ -584,13 +577,14 @@ TEST(Ply, ReadsBigEndianBinary) {
   body.Put(uint8_t{30}).Put(0.5f).Put(int32_t{-7}).Put(uint16_t{31});
   body.Put(-1e-3f).Put(7.f).Put(8.f).Put(uint8_t{255}).Put(uint8_t{0});
   body.Put(uint8_t{1}).Put(250.f).Put(int32_t{123456}).Put(uint16_t{0});
-  WriteAll(path, PlyHeader("binary_big_endian",
-                           "element vertex 2\nproperty float x\nproperty float "
-                           "y\nproperty float z\nproperty uchar red\nproperty "
-                           "uchar green\nproperty uchar blue\nproperty float "
-                           "intensity\nproperty int instance_id\nproperty "
-                           "ushort ring\n") +
-                     body.bytes);
+  test::WriteFile(
+      path, PlyHeader("binary_big_endian",
+                      "element vertex 2\nproperty float x\nproperty float "
+                      "y\nproperty float z\nproperty uchar red\nproperty "
+                      "uchar green\nproperty uchar blue\nproperty float "
+                      "intensity\nproperty int instance_id\nproperty "
+                      "ushort ring\n") +
+                body.bytes);
   const PointCloud cloud = ReadPly(path);
   ASSERT_EQ(cloud.size(), 2u);
   EXPECT_EQ(cloud.positions[0], Eigen::Vector3f(1.5f, -2.25f, 3e5f));
@@ -619,11 +613,11 @@ TEST(Ply, ShuffledPropertyOrderAndDoubleCoordinates) {
   body.Put(-0.3).Put(uint8_t{6}).Put(int16_t{0}).Put(80.25).Put(0.f);
   body.Put(uint8_t{4}).Put(2.0).Put(uint8_t{5}).Put(uint16_t{0});
   body.Put(int8_t{1}).Put(uint32_t{0});
-  WriteAll(dir + "/binary.ply",
-           PlyHeader("binary_little_endian", elements) + body.bytes);
-  WriteAll(dir + "/ascii.ply", PlyHeader("ascii", elements) +
-                                   "0.1 3 -5 -12.5 9 1 1e-7 2 17 -1 40\n"
-                                   "-0.3 6 0 80.25 0 4 2.0 5 0 1 0\n");
+  test::WriteFile(dir + "/binary.ply",
+                  PlyHeader("binary_little_endian", elements) + body.bytes);
+  test::WriteFile(dir + "/ascii.ply", PlyHeader("ascii", elements) +
+                                          "0.1 3 -5 -12.5 9 1 1e-7 2 17 -1 40\n"
+                                          "-0.3 6 0 80.25 0 4 2.0 5 0 1 0\n");
   for (const char* name : {"binary.ply", "ascii.ply"}) {
     SCOPED_TRACE(name);
     const PointCloud cloud = ReadPly(dir + "/" + name);
@@ -667,20 +661,20 @@ TEST(Ply, SkipsListsAndOtherElements) {
     b.Put(int32_t{0}).Put(uint8_t{1});
     const std::string format =
         big ? "binary_big_endian" : "binary_little_endian";
-    WriteAll(dir + "/" + format + ".ply",
-             PlyHeader(format, elements) + b.bytes);
+    test::WriteFile(dir + "/" + format + ".ply",
+                    PlyHeader(format, elements) + b.bytes);
     // A face whose list runs past the end of the file.
-    WriteAll(
+    test::WriteFile(
         dir + "/cut_" + format + ".ply",
         PlyHeader(format, elements) + b.bytes.substr(0, b.bytes.size() - 6));
   }
-  WriteAll(dir + "/ascii.ply", PlyHeader("ascii", elements) +
-                                   "1 2 7 8\n"
-                                   "1 0 2 3 10 11 12\n"
-                                   "4 2 0 2 5 6 20 21 22\n"
-                                   "7 1 1 8 9 30 31 32\n"
-                                   "3 0 1 2 0\n"
-                                   "4 0 1 2 0 1\n");
+  test::WriteFile(dir + "/ascii.ply", PlyHeader("ascii", elements) +
+                                          "1 2 7 8\n"
+                                          "1 0 2 3 10 11 12\n"
+                                          "4 2 0 2 5 6 20 21 22\n"
+                                          "7 1 1 8 9 30 31 32\n"
+                                          "3 0 1 2 0\n"
+                                          "4 0 1 2 0 1\n");
   for (const char* name :
        {"binary_little_endian.ply", "binary_big_endian.ply", "ascii.ply"}) {
     SCOPED_TRACE(name);
@@ -702,11 +696,12 @@ TEST(Ply, SkipsListsAndOtherElements) {
 
 TEST(Ply, ToleratesCrlfCommentsAndObjInfo) {
   const std::string path = test::MakeTempDir("ply_crlf") + "/crlf.ply";
-  WriteAll(path,
-           "ply\r\nformat ascii 1.0\r\ncomment made on Windows\r\nobj_info "
-           "scanner 3\r\nelement vertex 2\r\nproperty float x\r\nproperty "
-           "float y\r\nproperty float z\r\nend_header\r\n1 2 3\r\n\r\n4 5 "
-           "6\r\n");
+  test::WriteFile(
+      path,
+      "ply\r\nformat ascii 1.0\r\ncomment made on Windows\r\nobj_info "
+      "scanner 3\r\nelement vertex 2\r\nproperty float x\r\nproperty "
+      "float y\r\nproperty float z\r\nend_header\r\n1 2 3\r\n\r\n4 5 "
+      "6\r\n");
   const PointCloud cloud = ReadPly(path);
   ASSERT_EQ(cloud.size(), 2u);
   EXPECT_EQ(cloud.positions[1], Eigen::Vector3f(4, 5, 6));
@@ -749,7 +744,7 @@ TEST(Ply, AsciiGarbageNamesLineAndToken) {
        "least 6 characters, but only 10 bytes follow the header"},
   };
   for (const auto& [body, error] : cases) {
-    WriteAll(path, XyzAsciiPly(body));
+    test::WriteFile(path, XyzAsciiPly(body));
     EXPECT_EQ(ErrorOf([&] { ReadPly(path); }), path + error) << body;
   }
 }
@@ -772,10 +767,10 @@ TEST(Ply, AsciiIntegersOutOfTheirTypeAreErrors) {
        ": line 13: value '40000' is out of range for property 's' (short)"},
   };
   for (const auto& [body, error] : cases) {
-    WriteAll(path, header + body);
+    test::WriteFile(path, header + body);
     EXPECT_EQ(ErrorOf([&] { ReadPly(path); }), path + error) << body;
   }
-  WriteAll(path, header + "1 2 3 +255 0 0 -32768\n");
+  test::WriteFile(path, header + "1 2 3 +255 0 0 -32768\n");
   EXPECT_EQ(ReadPly(path).colors[0], Color3u8(255, 0, 0));
 }
 
@@ -788,11 +783,12 @@ TEST(Ply, HostileVertexCountFailsFast) {
       "element vertex 50000000\nproperty float x\nproperty float y\nproperty "
       "float z\nproperty uchar red\nproperty uchar green\nproperty uchar "
       "blue\n");
-  WriteAll(dir + "/binary.ply", binary + std::string(80000 - binary.size(), 0));
+  test::WriteFile(dir + "/binary.ply",
+                  binary + std::string(80000 - binary.size(), 0));
   std::string ascii = XyzAsciiPly("", 50000000);
   while (ascii.size() < 80000) ascii += "1 2 3\n";
-  WriteAll(dir + "/ascii.ply", ascii);
-  WriteAll(dir + "/limit.ply", XyzAsciiPly("1 2 3\n", 2147483649));
+  test::WriteFile(dir + "/ascii.ply", ascii);
+  test::WriteFile(dir + "/limit.ply", XyzAsciiPly("1 2 3\n", 2147483649));
   const auto start = std::chrono::steady_clock::now();
   EXPECT_EQ(ErrorOf([&] { ReadPly(dir + "/binary.ply"); }),
             dir +
@@ -828,18 +824,21 @@ TEST(Pcd, HostileDeclaredSizesFailFast) {
     return Body().Put(compressed).Put(uncompressed).bytes;
   };
   const std::string b = header("50000000", "binary");
-  WriteAll(dir + "/binary.pcd", b + std::string(80000 - b.size(), 0));
+  test::WriteFile(dir + "/binary.pcd", b + std::string(80000 - b.size(), 0));
   const std::string c = header("50000000", "binary_compressed");
-  WriteAll(dir + "/ratio.pcd",
-           c + sizes(1000, 800000000) + std::string(1000, 0));
-  WriteAll(dir + "/mismatch.pcd",
-           c + sizes(1000, 4000000000u) + std::string(1000, 0));
+  test::WriteFile(dir + "/ratio.pcd",
+                  c + sizes(1000, 800000000) + std::string(1000, 0));
+  test::WriteFile(dir + "/mismatch.pcd",
+                  c + sizes(1000, 4000000000u) + std::string(1000, 0));
   const std::string c2 = header("2", "binary_compressed");
-  WriteAll(dir + "/compressed_size.pcd", c2 + sizes(2000000000u, 32) + "x");
-  WriteAll(dir + "/garbage.pcd", c2 + sizes(10, 32) + std::string(10, '\xff'));
-  WriteAll(dir + "/nosizes.pcd", c2 + "abc");
-  WriteAll(dir + "/limit.pcd",
-           "FIELDS x y z\nWIDTH 4294967295\nHEIGHT 4294967295\nDATA binary\n");
+  test::WriteFile(dir + "/compressed_size.pcd",
+                  c2 + sizes(2000000000u, 32) + "x");
+  test::WriteFile(dir + "/garbage.pcd",
+                  c2 + sizes(10, 32) + std::string(10, '\xff'));
+  test::WriteFile(dir + "/nosizes.pcd", c2 + "abc");
+  test::WriteFile(
+      dir + "/limit.pcd",
+      "FIELDS x y z\nWIDTH 4294967295\nHEIGHT 4294967295\nDATA binary\n");
   const auto start = std::chrono::steady_clock::now();
   const std::pair<const char*, std::string> cases[] = {
       {"binary.pcd",
@@ -917,16 +916,16 @@ TEST(Pcd, BinaryCompressedMatchesUncompressedExactly) {
   const std::string dir = test::MakeTempDir("pcd_compressed");
   const PointCloud cloud = RandomCloud(5000);
   WritePcd(dir + "/binary.pcd", cloud);
-  WriteAll(dir + "/compressed.pcd", CompressedPcd(cloud, 5000, 1));
+  test::WriteFile(dir + "/compressed.pcd", CompressedPcd(cloud, 5000, 1));
   PcdReadSummary summary;
   const PointCloud compressed = ReadPcd(dir + "/compressed.pcd", &summary);
   EXPECT_EQ(summary.data, "binary_compressed");
   ExpectSameCloud(ReadPcd(dir + "/binary.pcd"), compressed);
   ExpectSameCloud(cloud, compressed);
   // One byte less of LZF data: the stream no longer decodes to the full size.
-  std::string cut = ReadAll(dir + "/compressed.pcd");
+  std::string cut = test::ReadFile(dir + "/compressed.pcd");
   cut.pop_back();
-  WriteAll(dir + "/cut.pcd", cut);
+  test::WriteFile(dir + "/cut.pcd", cut);
   EXPECT_THAT(ErrorOf([&] { ReadPcd(dir + "/cut.pcd"); }),
               StartsWith(dir + "/cut.pcd: truncated: the compressed block "));
 }
@@ -935,29 +934,30 @@ TEST(Pcd, ReadsOlderHeadersCrlfAndPaddedBinary) {
   const std::string dir = test::MakeTempDir("pcd_old");
   // v0.5: no VERSION, COUNT, WIDTH, HEIGHT or VIEWPOINT; SIZE and TYPE
   // default to float32.
-  WriteAll(dir + "/v5.pcd",
-           "# old\nFIELDS x y z\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n");
+  test::WriteFile(dir + "/v5.pcd",
+                  "# old\nFIELDS x y z\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n");
   EXPECT_EQ(ReadPcd(dir + "/v5.pcd").positions,
             (std::vector<Eigen::Vector3f>{{1, 2, 3}, {4, 5, 6}}));
-  WriteAll(dir + "/crlf.pcd",
-           "VERSION .7\r\nFIELDS x y z\r\nSIZE 4 4 4\r\nTYPE F F F\r\nCOUNT 1 "
-           "1 1\r\nWIDTH 1\r\nHEIGHT 1\r\nPOINTS 1\r\nDATA ascii\r\n1 2 3\r\n");
+  test::WriteFile(
+      dir + "/crlf.pcd",
+      "VERSION .7\r\nFIELDS x y z\r\nSIZE 4 4 4\r\nTYPE F F F\r\nCOUNT 1 "
+      "1 1\r\nWIDTH 1\r\nHEIGHT 1\r\nPOINTS 1\r\nDATA ascii\r\n1 2 3\r\n");
   EXPECT_EQ(ReadPcd(dir + "/crlf.pcd").positions[0], Eigen::Vector3f(1, 2, 3));
   // Older PCL padded binary files with zeros after the points.
   const PointCloud cloud = RandomCloud(10);
   WritePcd(dir + "/padded.pcd", cloud);
-  WriteAll(dir + "/padded.pcd",
-           ReadAll(dir + "/padded.pcd") + std::string(4096, '\0'));
+  test::WriteFile(dir + "/padded.pcd", test::ReadFile(dir + "/padded.pcd") +
+                                           std::string(4096, '\0'));
   ExpectSameCloud(cloud, ReadPcd(dir + "/padded.pcd"));
-  WriteAll(dir + "/v9.pcd",
-           "VERSION 0.9\nFIELDS x y z\nPOINTS 0\nDATA ascii\n");
+  test::WriteFile(dir + "/v9.pcd",
+                  "VERSION 0.9\nFIELDS x y z\nPOINTS 0\nDATA ascii\n");
   EXPECT_EQ(ErrorOf([&] { ReadPcd(dir + "/v9.pcd"); }),
             dir +
                 "/v9.pcd: malformed PCD header: unsupported VERSION (0.5, "
                 "0.6 and 0.7 are read) (line 1)");
-  WriteAll(dir + "/ascii_bad.pcd",
-           "FIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nWIDTH 2\nDATA "
-           "ascii\n1 2 3 4\n4 5 6 -1\n");
+  test::WriteFile(dir + "/ascii_bad.pcd",
+                  "FIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nWIDTH 2\nDATA "
+                  "ascii\n1 2 3 4\n4 5 6 -1\n");
   EXPECT_EQ(ErrorOf([&] { ReadPcd(dir + "/ascii_bad.pcd"); }),
             dir +
                 "/ascii_bad.pcd: line 7: value '-1' is out of range for "
@@ -971,13 +971,13 @@ TEST(Pcd, WritesPclHeaderLayout) {
   cloud.colors = {Color3u8(1, 2, 3)};
   cloud.intensity = {7.5f};
   WritePcd(path, cloud, /*binary=*/false);
-  EXPECT_EQ(ReadAll(path),
+  EXPECT_EQ(test::ReadFile(path),
             "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS "
             "x y z rgb intensity\nSIZE 4 4 4 4 4\nTYPE F F F U F\nCOUNT 1 1 1 "
             "1 1\nWIDTH 1\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA "
             "ascii\n0.100000001 -2 2.99999992e-05 66051 7.5\n");
   WritePcd(path, cloud);
-  const std::string binary = ReadAll(path);
+  const std::string binary = test::ReadFile(path);
   EXPECT_THAT(binary, HasSubstr("POINTS 1\nDATA binary\n"));
   EXPECT_EQ(binary.size(), binary.find("DATA binary\n") + 12 + 20);
 }
@@ -994,13 +994,13 @@ std::string WithNonFinite(const std::string& dir,
   cloud.positions[2].y() = sentinel;
   if (EndsWith(name, ".cpcd")) {
     cloud.positions[2].y() = value;
-    WriteAll(path, CompressedPcd(cloud, 4, 1));
+    test::WriteFile(path, CompressedPcd(cloud, 4, 1));
     return path;
   }
   WritePointCloud(path, cloud);
   if (EndsWith(name, "a.ply")) WritePly(path, cloud, /*binary=*/false);
   if (EndsWith(name, "a.pcd")) WritePcd(path, cloud, /*binary=*/false);
-  std::string bytes = ReadAll(path);
+  std::string bytes = test::ReadFile(path);
   std::string from(reinterpret_cast<const char*>(&sentinel), 4);
   std::string to(reinterpret_cast<const char*>(&value), 4);
   if (EndsWith(name, "a.ply") || EndsWith(name, "a.pcd")) {
@@ -1010,7 +1010,7 @@ std::string WithNonFinite(const std::string& dir,
   const size_t at = bytes.find(from);
   EXPECT_NE(at, std::string::npos) << name;
   bytes.replace(at, from.size(), to);
-  WriteAll(path, bytes);
+  test::WriteFile(path, bytes);
   return path;
 }
 
@@ -1043,7 +1043,7 @@ TEST(Pcd, OrganisedCloudDropsNanHolesOnly) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   cloud.positions[1] = Eigen::Vector3f(nan, nan, nan);
   cloud.positions[4].z() = nan;
-  WriteAll(dir + "/organised.pcd", CompressedPcd(cloud, 3, 2));
+  test::WriteFile(dir + "/organised.pcd", CompressedPcd(cloud, 3, 2));
   PcdReadSummary summary;
   const PointCloud read = ReadPcd(dir + "/organised.pcd", &summary);
   EXPECT_EQ(summary.dropped_nan_points, 2u);
@@ -1051,11 +1051,11 @@ TEST(Pcd, OrganisedCloudDropsNanHolesOnly) {
   EXPECT_EQ(summary.height, 2u);
   ExpectSameCloud(read, cloud.Select({0, 2, 3, 5}));
   // The same points as one row are an error; +inf is one even when organised.
-  WriteAll(dir + "/row.pcd", CompressedPcd(cloud, 6, 1));
+  test::WriteFile(dir + "/row.pcd", CompressedPcd(cloud, 6, 1));
   EXPECT_EQ(ErrorOf([&] { ReadPcd(dir + "/row.pcd"); }),
             dir + "/row.pcd: point 1 has a non-finite coordinate (nan)");
   cloud.positions[3].x() = std::numeric_limits<float>::infinity();
-  WriteAll(dir + "/inf.pcd", CompressedPcd(cloud, 3, 2));
+  test::WriteFile(dir + "/inf.pcd", CompressedPcd(cloud, 3, 2));
   EXPECT_EQ(ErrorOf([&] { ReadPcd(dir + "/inf.pcd"); }),
             dir + "/inf.pcd: point 3 has a non-finite coordinate (+inf)");
 }
@@ -1072,7 +1072,7 @@ TEST(PointCloudIo, MatchesOpen3dBothWays) {
   WritePly(dir + "/ours_a.ply", ours, /*binary=*/false);
   WritePcd(dir + "/ours_b.pcd", ours);
   WritePcd(dir + "/ours_a.pcd", ours, /*binary=*/false);
-  WriteAll(dir + "/check.py", R"(import sys, numpy as np, open3d as o3d
+  test::WriteFile(dir + "/check.py", R"(import sys, numpy as np, open3d as o3d
 d = sys.argv[1]
 rng = np.random.default_rng(5)
 p = o3d.geometry.PointCloud()

@@ -17,15 +17,6 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteAll(const std::string& path, const std::string& text) {
-  std::ofstream(path) << text;
-}
-
 Trajectory RandomTrajectory(int n) {
   std::uniform_real_distribution<double> u(-10, 10);
   std::normal_distribution<double> g;
@@ -97,7 +88,7 @@ TEST(TrajectoryIo, Monst3rWritesWFirstLikePythonStr) {
         Rigid3d(q, Eigen::Vector3d(0.00012345, 12345678901234567.0, 5e-324)));
   WriteMonst3rTrajectory(path, t);
   EXPECT_EQ(
-      ReadAll(path),
+      test::ReadFile(path),
       "0.0 0.1 1e-05 0.0001 0.5 -0.5 0.5 0.5\n"
       "1.0 1e+16 1234567890123456.0 -0.30000000000000004 0.5 -0.5 0.5 0.5\n"
       "2.0 1.5e+300 -0.0 2.5e-07 0.5 -0.5 0.5 0.5\n"
@@ -111,7 +102,7 @@ TEST(TrajectoryIo, TumWritesWLast) {
   t.Add(0.5, Rigid3d(QuaternionFromWxyz(0.5, -0.5, 0.5, 0.5),
                      Eigen::Vector3d(1, 2, 3)));
   WriteTumTrajectory(path, t);
-  EXPECT_EQ(ReadAll(path), "0.5 1.0 2.0 3.0 -0.5 0.5 0.5 0.5\n");
+  EXPECT_EQ(test::ReadFile(path), "0.5 1.0 2.0 3.0 -0.5 0.5 0.5 0.5\n");
 }
 
 TEST(TrajectoryIo, SameNumbersGiveDifferentRotationsInMonst3rAndTum) {
@@ -119,8 +110,8 @@ TEST(TrajectoryIo, SameNumbersGiveDifferentRotationsInMonst3rAndTum) {
   // about x when read w-first (MonST3R) and 180 deg about (1, 1, 0) when read
   // w-last (TUM).
   const std::string path = test::MakeTempDir("traj_order") + "/t.txt";
-  WriteAll(path,
-           "0.0 1.0 2.0 3.0 0.7071067811865476 0.7071067811865476 0.0 0.0\n");
+  test::WriteFile(
+      path, "0.0 1.0 2.0 3.0 0.7071067811865476 0.7071067811865476 0.0 0.0\n");
   const Trajectory m = ReadMonst3rTrajectory(path);
   const Trajectory t = ReadTumTrajectory(path);
   const Eigen::Quaterniond rx90(
@@ -139,8 +130,8 @@ TEST(TrajectoryIo, Monst3rPoseIsCameraToWorld) {
   // A camera at (1, 2, 3) rotated 90 deg about z: the camera centre in the
   // world is t, and the camera's x axis points along world +y.
   const std::string path = test::MakeTempDir("traj_c2w") + "/pred_traj.txt";
-  WriteAll(path,
-           "0.0 1.0 2.0 3.0 0.7071067811865476 0.0 0.0 0.7071067811865476\n");
+  test::WriteFile(
+      path, "0.0 1.0 2.0 3.0 0.7071067811865476 0.0 0.0 0.7071067811865476\n");
   const Rigid3d world_from_cam = ReadMonst3rTrajectory(path).world_from_cam[0];
   EXPECT_THAT(world_from_cam * Eigen::Vector3d(0, 0, 0),
               test::EigenNear(Eigen::Vector3d(1, 2, 3), 1e-12));
@@ -150,7 +141,8 @@ TEST(TrajectoryIo, Monst3rPoseIsCameraToWorld) {
 
 TEST(TrajectoryIo, QuaternionsAreNormalisedOnRead) {
   const std::string path = test::MakeTempDir("traj_norm") + "/pred_traj.txt";
-  WriteAll(path, "0.0 0 0 0 2.0 0.0 0.0 0.0\n1.0 0 0 0 0.0 0.0 3.0 4.0\n");
+  test::WriteFile(path,
+                  "0.0 0 0 0 2.0 0.0 0.0 0.0\n1.0 0 0 0 0.0 0.0 3.0 4.0\n");
   const Trajectory t = ReadMonst3rTrajectory(path);
   ASSERT_EQ(t.size(), 2u);
   EXPECT_DOUBLE_EQ(t.world_from_cam[0].rotation.w(), 1.0);
@@ -162,13 +154,14 @@ TEST(TrajectoryIo, QuaternionsAreNormalisedOnRead) {
 
 TEST(TrajectoryIo, TumSkipsCommentsAndBlankLinesButCountsThem) {
   const std::string path = test::MakeTempDir("traj_comments") + "/t.txt";
-  WriteAll(path,
-           "# timestamp tx ty tz qx qy qz qw\n\n1.0 0 0 0 0 0 0 1\r\n  \n2.0 1 "
-           "0 0 0 0 0 1\n");
+  test::WriteFile(
+      path,
+      "# timestamp tx ty tz qx qy qz qw\n\n1.0 0 0 0 0 0 0 1\r\n  \n2.0 1 "
+      "0 0 0 0 0 1\n");
   const Trajectory t = ReadTumTrajectory(path);
   EXPECT_EQ(t.size(), 2u);
   EXPECT_DOUBLE_EQ(t.Length(), 1.0);
-  WriteAll(path, "# header\n\n1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 1\n");
+  test::WriteFile(path, "# header\n\n1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 1\n");
   EXPECT_EQ(
       ErrorOf([&] { ReadTumTrajectory(path); }),
       path + ": line 4: expected 8 numbers (t x y z qx qy qz qw), found 7");
@@ -176,13 +169,13 @@ TEST(TrajectoryIo, TumSkipsCommentsAndBlankLinesButCountsThem) {
 
 TEST(TrajectoryIo, RejectsZeroAndNonFiniteQuaternions) {
   const std::string path = test::MakeTempDir("traj_zero") + "/pred_traj.txt";
-  WriteAll(path, "0.0 0 0 0 1 0 0 0\n1.0 0 0 0 0.0 0.0 0.0 0.0\n");
+  test::WriteFile(path, "0.0 0 0 0 1 0 0 0\n1.0 0 0 0 0.0 0.0 0.0 0.0\n");
   EXPECT_EQ(ErrorOf([&] { ReadMonst3rTrajectory(path); }),
             path + ": line 2: zero quaternion");
-  WriteAll(path, "0.0 0 0 0 nan 0 0 0\n");
+  test::WriteFile(path, "0.0 0 0 0 nan 0 0 0\n");
   EXPECT_EQ(ErrorOf([&] { ReadMonst3rTrajectory(path); }),
             path + ": line 1: non-finite value 'nan'");
-  WriteAll(path, "0.0 inf 0 0 1 0 0 0\n");
+  test::WriteFile(path, "0.0 inf 0 0 1 0 0 0\n");
   EXPECT_THAT(ErrorOf([&] { ReadMonst3rTrajectory(path); }),
               HasSubstr("line 1: non-finite"));
 }
@@ -190,14 +183,14 @@ TEST(TrajectoryIo, RejectsZeroAndNonFiniteQuaternions) {
 TEST(TrajectoryIo, MalformedLinesNameFileAndLine) {
   const std::string path =
       test::MakeTempDir("traj_malformed") + "/pred_traj.txt";
-  WriteAll(path, "0.0 0 0 0 1 0 0 0\n1.0 0 0 zero 1 0 0 0\n");
+  test::WriteFile(path, "0.0 0 0 0 1 0 0 0\n1.0 0 0 zero 1 0 0 0\n");
   EXPECT_EQ(ErrorOf([&] { ReadMonst3rTrajectory(path); }),
             path + ": line 2: not a number: 'zero'");
-  WriteAll(path, "0.0 0 0 0 1 0 0 0 9\n");
+  test::WriteFile(path, "0.0 0 0 0 1 0 0 0 9\n");
   EXPECT_EQ(
       ErrorOf([&] { ReadMonst3rTrajectory(path); }),
       path + ": line 1: expected 8 numbers (t x y z qw qx qy qz), found 9");
-  WriteAll(path, "1.0 0 0 0 1 0 0 0\n1.0 0 0 0 1 0 0 0\n");
+  test::WriteFile(path, "1.0 0 0 0 1 0 0 0\n1.0 0 0 0 1 0 0 0\n");
   EXPECT_THAT(ErrorOf([&] { ReadMonst3rTrajectory(path); }),
               StartsWith(path + ": line 2: timestamp 1.0 is not greater"));
 }
@@ -214,10 +207,10 @@ TEST(TrajectoryIo, MissingFileSaysCannotOpen) {
 
 TEST(TrajectoryIo, EmptyFileIsAnEmptyTrajectory) {
   const std::string path = test::MakeTempDir("traj_empty") + "/pred_traj.txt";
-  WriteAll(path, "");
+  test::WriteFile(path, "");
   EXPECT_TRUE(ReadMonst3rTrajectory(path).empty());
   WriteMonst3rTrajectory(path, Trajectory());
-  EXPECT_EQ(ReadAll(path), "");
+  EXPECT_EQ(test::ReadFile(path), "");
 }
 
 TEST(TrajectoryIo, WriteRejectsInvalidTrajectory) {
@@ -239,17 +232,18 @@ TEST(Monst3rIntrinsics, WritesPercent6fLikeNumpySavetxt) {
       "398.042600 0.000000 256.000000 0.000000 398.042600 144.000000 0.000000 "
       "0.000000 "
       "1.000000\n";
-  EXPECT_EQ(ReadAll(path), line + line);
+  EXPECT_EQ(test::ReadFile(path), line + line);
 }
 
 TEST(Monst3rIntrinsics, ReadsOneCameraPerLine) {
   const std::string path =
       test::MakeTempDir("intr_read") + "/pred_intrinsics.txt";
-  WriteAll(path,
-           "398.042633 0.000000 256.000000 0.000000 398.042633 144.000000 "
-           "0.000000 0.000000 "
-           "1.000000\n"
-           "400.5 0 256 0 401.25 144 0 0 1\n");
+  test::WriteFile(
+      path,
+      "398.042633 0.000000 256.000000 0.000000 398.042633 144.000000 "
+      "0.000000 0.000000 "
+      "1.000000\n"
+      "400.5 0 256 0 401.25 144 0 0 1\n");
   const std::vector<PinholeCamera> cams = ReadMonst3rIntrinsics(path, 512, 288);
   ASSERT_EQ(cams.size(), 2u);
   EXPECT_DOUBLE_EQ(cams[0].fx, 398.042633);
@@ -282,15 +276,16 @@ TEST(Monst3rIntrinsics, RoundTripWithin6Decimals) {
 TEST(Monst3rIntrinsics, RejectsMalformedRows) {
   const std::string path =
       test::MakeTempDir("intr_bad") + "/pred_intrinsics.txt";
-  WriteAll(path, "400 0 256 0 400 144 0 0\n");
+  test::WriteFile(path, "400 0 256 0 400 144 0 0\n");
   EXPECT_EQ(ErrorOf([&] { ReadMonst3rIntrinsics(path, 512, 288); }),
             path +
                 ": line 1: expected 9 numbers (row-major 3x3 K: fx 0 cx 0 fy "
                 "cy 0 0 1), found 8");
-  WriteAll(path, "400 0 256 0 400 144 0 0 1\n400 3 256 0 400 144 0 0 1\n");
+  test::WriteFile(path,
+                  "400 0 256 0 400 144 0 0 1\n400 3 256 0 400 144 0 0 1\n");
   EXPECT_THAT(ErrorOf([&] { ReadMonst3rIntrinsics(path, 512, 288); }),
               StartsWith(path + ": line 2: not a pinhole K"));
-  WriteAll(path, "-400 0 256 0 400 144 0 0 1\n");
+  test::WriteFile(path, "-400 0 256 0 400 144 0 0 1\n");
   EXPECT_THAT(ErrorOf([&] { ReadMonst3rIntrinsics(path, 512, 288); }),
               StartsWith(path + ": line 1: focal lengths must be positive"));
 }

@@ -17,12 +17,6 @@
 namespace geodrive {
 namespace {
 
-bool SameBytes(const cv::Mat& a, const cv::Mat& b) {
-  return a.size() == b.size() && a.type() == b.type() && a.isContinuous() &&
-         b.isContinuous() &&
-         std::memcmp(a.data, b.data, a.total() * a.elemSize()) == 0;
-}
-
 const PinholeCamera kCamera(300, 300, 159.5, 119.5, 320, 240);
 
 RenderOptions Options(SplatSize splat) {
@@ -201,7 +195,7 @@ TEST(Footprint, CloserViewOfAPointmapHasNoHolesOnTheMagnifiedFace) {
   // point, exactly as kFixed.
   const RenderedFrame no_fp = RenderFrame(v.cloud, kCamera, v.cam_from_world,
                                           Options(SplatSize::kFootprint));
-  EXPECT_TRUE(SameBytes(no_fp.rgb, fixed.rgb));
+  EXPECT_TRUE(test::SameBytes(no_fp.rgb, fixed.rgb));
 }
 
 // Seen from the capture pose, a pointmap is drawn one pixel per point with
@@ -226,9 +220,9 @@ TEST(Footprint, SeenAsAtCaptureOrFartherItIsOnePixelPerPointByteForByte) {
                                             Options(SplatSize::kFixed));
     const RenderedFrame splat = RenderFrame(*cloud, kCamera, cam_from_world,
                                             Options(SplatSize::kFootprint));
-    EXPECT_TRUE(SameBytes(fixed.rgb, splat.rgb));
-    EXPECT_TRUE(SameBytes(fixed.depth, splat.depth));
-    EXPECT_TRUE(SameBytes(fixed.mask, splat.mask));
+    EXPECT_TRUE(test::SameBytes(fixed.rgb, splat.rgb));
+    EXPECT_TRUE(test::SameBytes(fixed.depth, splat.depth));
+    EXPECT_TRUE(test::SameBytes(fixed.mask, splat.mask));
     EXPECT_EQ(fixed.num_projected, splat.num_projected);
   }
   // kFixed ignores the footprints (the paper preset keeps one pixel).
@@ -236,7 +230,7 @@ TEST(Footprint, SeenAsAtCaptureOrFartherItIsOnePixelPerPointByteForByte) {
       surface, kCamera, v.cam_from_world, Options(SplatSize::kFixed));
   const RenderedFrame fixed_without = RenderFrame(
       v.cloud, kCamera, v.cam_from_world, Options(SplatSize::kFixed));
-  EXPECT_TRUE(SameBytes(fixed_with.rgb, fixed_without.rgb));
+  EXPECT_TRUE(test::SameBytes(fixed_with.rgb, fixed_without.rgb));
 }
 
 TEST(Footprint, OutputDoesNotDependOnThreadsOrPointOrder) {
@@ -264,9 +258,9 @@ TEST(Footprint, OutputDoesNotDependOnThreadsOrPointOrder) {
   std::reverse(reversed.footprint_v.begin(), reversed.footprint_v.end());
   const RenderResult rev = RenderFrames(reversed, {kCamera}, poses, o);
   for (size_t f = 0; f < poses.size(); ++f) {
-    EXPECT_TRUE(SameBytes(one.frames[f].rgb, two.frames[f].rgb)) << f;
-    EXPECT_TRUE(SameBytes(one.frames[f].depth, two.frames[f].depth)) << f;
-    EXPECT_TRUE(SameBytes(one.frames[f].depth, rev.frames[f].depth)) << f;
+    EXPECT_TRUE(test::SameBytes(one.frames[f].rgb, two.frames[f].rgb)) << f;
+    EXPECT_TRUE(test::SameBytes(one.frames[f].depth, two.frames[f].depth)) << f;
+    EXPECT_TRUE(test::SameBytes(one.frames[f].depth, rev.frames[f].depth)) << f;
   }
 }
 

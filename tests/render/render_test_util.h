@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <opencv2/core.hpp>
 
@@ -14,6 +15,16 @@
 
 namespace geodrive {
 namespace test {
+
+// Same size, type and bytes (row by row, so views compare too).
+inline bool SameBytes(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y) {
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0)
+      return false;
+  }
+  return true;
+}
 
 // Procedural texture of a world point: checkerboard + stripes + a hash term,
 // all channels distinct.

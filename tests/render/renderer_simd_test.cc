@@ -11,18 +11,10 @@
 #include <random>
 
 #include "render/renderer.h"
+#include "tests/render/render_test_util.h"
 
 namespace geodrive {
 namespace {
-
-bool SameBytes(const cv::Mat& a, const cv::Mat& b) {
-  if (a.size() != b.size() || a.type() != b.type()) return false;
-  for (int y = 0; y < a.rows; ++y) {
-    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0)
-      return false;
-  }
-  return true;
-}
 
 // Points in front of a camera at the origin (x right, y down, z forward),
 // with exact ties, points on pixel borders (u = i + 0.5 in the integer-index
@@ -77,10 +69,10 @@ void ExpectSameFrames(const RenderResult& a,
     const std::string at = what + " frame " + std::to_string(f);
     EXPECT_EQ(x.num_projected, y.num_projected) << at;
     EXPECT_EQ(x.num_valid, y.num_valid) << at;
-    EXPECT_TRUE(SameBytes(x.rgb, y.rgb)) << at;
-    EXPECT_TRUE(SameBytes(x.depth, y.depth)) << at;
-    EXPECT_TRUE(SameBytes(x.mask, y.mask)) << at;
-    EXPECT_TRUE(SameBytes(x.index, y.index)) << at;
+    EXPECT_TRUE(test::SameBytes(x.rgb, y.rgb)) << at;
+    EXPECT_TRUE(test::SameBytes(x.depth, y.depth)) << at;
+    EXPECT_TRUE(test::SameBytes(x.mask, y.mask)) << at;
+    EXPECT_TRUE(test::SameBytes(x.index, y.index)) << at;
   }
 }
 

@@ -21,12 +21,6 @@ Rigid3d SomePose() {
                  Eigen::Vector3d(4.0, -1.0, 7.5));
 }
 
-bool SameBytes(const cv::Mat& a, const cv::Mat& b) {
-  return a.size() == b.size() && a.type() == b.type() && a.isContinuous() &&
-         b.isContinuous() &&
-         std::memcmp(a.data, b.data, a.total() * a.elemSize()) == 0;
-}
-
 // ---- Exactness: frame-0 pointmap rendered from frame 0 reproduces the frame-0
 // image. ----
 
@@ -381,10 +375,13 @@ TEST(Renderer, ByteIdenticalWithOneOrManyThreads) {
     const RenderResult many = RenderFrames(cloud, {camera}, poses, options);
     ASSERT_EQ(one.frames.size(), many.frames.size());
     for (size_t f = 0; f < poses.size(); ++f) {
-      EXPECT_TRUE(SameBytes(one.frames[f].rgb, many.frames[f].rgb)) << f;
-      EXPECT_TRUE(SameBytes(one.frames[f].depth, many.frames[f].depth)) << f;
-      EXPECT_TRUE(SameBytes(one.frames[f].mask, many.frames[f].mask)) << f;
-      EXPECT_TRUE(SameBytes(one.frames[f].index, many.frames[f].index)) << f;
+      EXPECT_TRUE(test::SameBytes(one.frames[f].rgb, many.frames[f].rgb)) << f;
+      EXPECT_TRUE(test::SameBytes(one.frames[f].depth, many.frames[f].depth))
+          << f;
+      EXPECT_TRUE(test::SameBytes(one.frames[f].mask, many.frames[f].mask))
+          << f;
+      EXPECT_TRUE(test::SameBytes(one.frames[f].index, many.frames[f].index))
+          << f;
     }
   }
 }
@@ -431,12 +428,12 @@ TEST(Renderer, SimdAndScalarKernelsGiveIdenticalBytes) {
                                std::to_string(cfg.radius_ndc);
       EXPECT_GT(simd.num_valid, camera.width * camera.height / 4) << what;
       EXPECT_EQ(simd.num_projected, scalar.num_projected) << what;
-      EXPECT_TRUE(SameBytes(simd.rgb, scalar.rgb)) << what;
-      EXPECT_TRUE(SameBytes(simd.rgb_float, scalar.rgb_float)) << what;
-      EXPECT_TRUE(SameBytes(simd.depth, scalar.depth)) << what;
-      EXPECT_TRUE(SameBytes(simd.mask, scalar.mask)) << what;
+      EXPECT_TRUE(test::SameBytes(simd.rgb, scalar.rgb)) << what;
+      EXPECT_TRUE(test::SameBytes(simd.rgb_float, scalar.rgb_float)) << what;
+      EXPECT_TRUE(test::SameBytes(simd.depth, scalar.depth)) << what;
+      EXPECT_TRUE(test::SameBytes(simd.mask, scalar.mask)) << what;
       if (with_index) {
-        EXPECT_TRUE(SameBytes(simd.index, scalar.index)) << what;
+        EXPECT_TRUE(test::SameBytes(simd.index, scalar.index)) << what;
       }
     }
   }
@@ -533,10 +530,11 @@ TEST(Renderer, MovingSetsWithIdentityPosesEqualTheConcatenatedCloudExactly) {
             (poses[f].Inverse() * Eigen::Vector3d(0, 0, -10)).cast<float>();
       const RenderedFrame ref = RenderFrame(all, camera, poses[f], options);
       const RenderedFrame& got = moving.frames[f];
-      EXPECT_TRUE(SameBytes(ref.rgb, got.rgb)) << ToString(mode) << " " << f;
-      EXPECT_TRUE(SameBytes(ref.depth, got.depth)) << f;
-      EXPECT_TRUE(SameBytes(ref.index, got.index)) << f;
-      EXPECT_TRUE(SameBytes(ref.instance, got.instance)) << f;
+      EXPECT_TRUE(test::SameBytes(ref.rgb, got.rgb))
+          << ToString(mode) << " " << f;
+      EXPECT_TRUE(test::SameBytes(ref.depth, got.depth)) << f;
+      EXPECT_TRUE(test::SameBytes(ref.index, got.index)) << f;
+      EXPECT_TRUE(test::SameBytes(ref.instance, got.instance)) << f;
       EXPECT_EQ(ref.num_projected, got.num_projected) << f;
       for (int k = 0; k < 2; ++k)
         set_pixels[k] += cv::countNonZero(got.instance == 7 + k);

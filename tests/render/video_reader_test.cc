@@ -208,15 +208,6 @@ TEST(VideoReader, FramesEqualOpenCvVideoCapture) {
   }
 }
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteAll(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
 // ReadVideoFrames(path) throws one InputError that names the file and says
 // `what`.
 void ExpectRefused(const std::string& path, const std::string& what) {
@@ -234,20 +225,20 @@ void ExpectRefused(const std::string& path, const std::string& what) {
 TEST(VideoReader, BadFilesAreOneInputErrorNamingTheFile) {
   const std::string dir = test::MakeTempDir("video_reader_bad");
   ExpectRefused(dir + "/missing.mp4", "no such file");
-  WriteAll(dir + "/text.mp4", "this is not a video\n");
+  test::WriteFile(dir + "/text.mp4", "this is not a video\n");
   ExpectRefused(dir + "/text.mp4", "not a readable video");
-  WriteAll(dir + "/empty.mp4", "");
+  test::WriteFile(dir + "/empty.mp4", "");
   ExpectRefused(dir + "/empty.mp4", "not a readable video");
   WriteH264Mp4(dir + "/good.mp4", MakeScene(25, 160, 96));
-  const std::string good = ReadAll(dir + "/good.mp4");
+  const std::string good = test::ReadFile(dir + "/good.mp4");
   // Cut short: the index (moov first, faststart) points past the end.
-  WriteAll(dir + "/truncated.mp4", good.substr(0, good.size() * 6 / 10));
+  test::WriteFile(dir + "/truncated.mp4", good.substr(0, good.size() * 6 / 10));
   ExpectRefused(dir + "/truncated.mp4", "truncated");
   // Garbage over the middle of the coded frames.
   std::string corrupt = good;
   for (size_t i = corrupt.size() / 2; i < corrupt.size() / 2 + 400; ++i)
     corrupt[i] = static_cast<char>(0x5A ^ (i * 7));
-  WriteAll(dir + "/corrupt.mp4", corrupt);
+  test::WriteFile(dir + "/corrupt.mp4", corrupt);
   ExpectRefused(dir + "/corrupt.mp4", "corrupt");
 }
 
@@ -256,14 +247,14 @@ TEST(VideoReader, HugeFramesAreRefusedFromTheHeader) {
   // biHeight of its 'strf' chunk): refused before any frame is decoded.
   const std::string dir = test::MakeTempDir("video_reader_huge");
   WriteVideoFrames(dir + "/small.avi", MakeScene(2, 64, 48), 10);
-  std::string avi = ReadAll(dir + "/small.avi");
+  std::string avi = test::ReadFile(dir + "/small.avi");
   const size_t strf = avi.find("strf");
   ASSERT_NE(strf, std::string::npos);
   for (const size_t at : {strf + 12, strf + 16}) {  // biWidth, biHeight
     const uint32_t v = 100000;
     for (int k = 0; k < 4; ++k) avi[at + k] = static_cast<char>(v >> (8 * k));
   }
-  WriteAll(dir + "/huge.avi", avi);
+  test::WriteFile(dir + "/huge.avi", avi);
   ExpectRefused(dir + "/huge.avi", "over the reader's limit");
 }
 
