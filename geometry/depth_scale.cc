@@ -29,13 +29,28 @@ double Median(std::vector<double> v) {
   if (v.size() % 2 == 1) return v[mid];
   return 0.5 * (v[mid] + *std::max_element(v.begin(), v.begin() + mid));
 }
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const double pos = p * (v.size() - 1);
+// The p-quantile of sorted values (linear interpolation between the two
+// nearest ranks); 0 when empty.
+double SortedPercentile(const std::vector<double>& sorted, double p) {
+  if (sorted.empty()) return 0;
+  const double pos = p * (sorted.size() - 1);
   const size_t lo = static_cast<size_t>(std::floor(pos));
-  const size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (pos - lo) * (v[hi] - v[lo]);
+  const size_t hi = std::min(lo + 1, sorted.size() - 1);
+  return sorted[lo] + (pos - lo) * (sorted[hi] - sorted[lo]);
+}
+
+// How many values r of `sorted` (ascending, finite) satisfy |r - c| < thr:
+// the same count as testing every value, found with two binary searches.
+// The values that pass are one contiguous run: below c, c - r only shrinks as
+// r grows (rounded subtraction is monotone), above c, r - c only grows.
+int CountWithin(const std::vector<double>& sorted, double c, double thr) {
+  const auto pass = [&](double r) { return std::abs(r - c) < thr; };
+  const auto first =
+      std::partition_point(sorted.begin(), sorted.end(),
+                           [&](double r) { return r < c && !pass(r); });
+  const auto last = std::partition_point(
+      first, sorted.end(), [&](double r) { return r < c || pass(r); });
+  return static_cast<int>(last - first);
 }
 }  // namespace
 
@@ -64,13 +79,14 @@ DepthScaleResult FitDepthScale(const std::vector<double>& d_ref,
     return result;
   }
   const double thr = options.inlier_log_threshold;
-  auto count_inliers = [&](double log_s) {
-    int n = 0;
-    for (double r : log_ratio) n += std::abs(r - log_s) < thr;
-    return n;
-  };
   double log_s = Median(log_ratio);
   if (options.use_ransac) {
+    // RANSAC over single-sample hypotheses, each scored by its inlier count:
+    // counted on a sorted copy (O(log n) a hypothesis instead of O(n); the
+    // counts, and so the result, are the same).
+    std::vector<double> sorted = log_ratio;
+    std::sort(sorted.begin(), sorted.end());
+    auto count_inliers = [&](double c) { return CountWithin(sorted, c, thr); };
     std::mt19937_64 rng(options.seed);
     std::uniform_int_distribution<size_t> pick(0, log_ratio.size() - 1);
     int best = count_inliers(log_s);
@@ -125,9 +141,10 @@ DepthScaleResult FitDepthScale(const std::vector<double>& d_ref,
   result.num_inliers = static_cast<int>(residuals.size());
   result.inlier_fraction =
       static_cast<double>(result.num_inliers) / result.num_points;
-  result.residual_p50 = Percentile(residuals, 0.5);
-  result.residual_p90 = Percentile(residuals, 0.9);
-  result.residual_p99 = Percentile(residuals, 0.99);
+  std::sort(residuals.begin(), residuals.end());
+  result.residual_p50 = SortedPercentile(residuals, 0.5);
+  result.residual_p90 = SortedPercentile(residuals, 0.9);
+  result.residual_p99 = SortedPercentile(residuals, 0.99);
   result.success = result.num_inliers >= options.min_points;
   result.message =
       result.success

@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
@@ -48,6 +50,114 @@ TEST(DepthScale, RobustToNoiseAndOutliers) {
                 100 * rel, r.BriefReport().c_str());
     EXPECT_LT(rel, 0.005);
     EXPECT_GT(r.inlier_fraction, 0.8);
+  }
+}
+
+// The fit as first written (every hypothesis scored by testing every ratio,
+// each percentile by a sort of its own): the reference FitDepthScale's faster
+// counting must equal bit for bit.
+DepthScaleResult ExhaustiveFit(const std::vector<double>& d_ref,
+                               const std::vector<double>& d_est,
+                               const DepthScaleOptions& o) {
+  std::vector<double> lr, ref, est;
+  for (size_t i = 0; i < d_ref.size(); ++i) {
+    lr.push_back(std::log(d_ref[i] / d_est[i]));
+    ref.push_back(d_ref[i]);
+    est.push_back(d_est[i]);
+  }
+  const double thr = o.inlier_log_threshold;
+  const auto count = [&](double c) {
+    int n = 0;
+    for (double r : lr) n += std::abs(r - c) < thr;
+    return n;
+  };
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t mid = v.size() / 2;
+    return v.size() % 2 == 1 ? v[mid] : 0.5 * (v[mid] + v[mid - 1]);
+  };
+  double log_s = median(lr);
+  std::mt19937_64 rng(o.seed);
+  std::uniform_int_distribution<size_t> pick(0, lr.size() - 1);
+  int best = count(log_s);
+  for (int it = 0; it < o.ransac_iterations; ++it) {
+    const double c = lr[pick(rng)];
+    const int n = count(c);
+    if (n > best) best = n, log_s = c;
+  }
+  std::vector<double> inl;
+  for (double r : lr)
+    if (std::abs(r - log_s) < thr) inl.push_back(r);
+  log_s = median(inl);
+  for (int it = 0; it < o.irls_iterations; ++it) {
+    double wsum = 0, wr = 0;
+    for (double r : lr) {
+      const double e = (r - log_s) / o.cauchy_scale;
+      const double w = 1.0 / (1.0 + e * e);
+      wsum += w;
+      wr += w * r;
+    }
+    const double next = wr / wsum;
+    const bool converged = std::abs(next - log_s) < 1e-12;
+    log_s = next;
+    if (converged) break;
+  }
+  for (int it = 0; it < 3; ++it) {
+    double sum = 0;
+    int n = 0;
+    for (double r : lr)
+      if (std::abs(r - log_s) < thr) sum += r, ++n;
+    if (n == 0) break;
+    log_s = sum / n;
+  }
+  DepthScaleResult out;
+  out.scale = std::exp(log_s);
+  std::vector<double> res;
+  for (size_t i = 0; i < lr.size(); ++i)
+    if (std::abs(lr[i] - log_s) < thr)
+      res.push_back(std::abs(ref[i] - out.scale * est[i]));
+  out.num_inliers = static_cast<int>(res.size());
+  const auto pct = [&](double p) {
+    std::vector<double> v = res;
+    std::sort(v.begin(), v.end());
+    const double pos = p * (v.size() - 1);
+    const size_t lo = static_cast<size_t>(std::floor(pos));
+    const size_t hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (pos - lo) * (v[hi] - v[lo]);
+  };
+  out.residual_p50 = pct(0.5);
+  out.residual_p90 = pct(0.9);
+  out.residual_p99 = pct(0.99);
+  return out;
+}
+
+// Ratios on a grid of steps of half the inlier band, so that many ties and
+// many hypotheses exactly one band apart (where rounding decides) occur, plus
+// noisy ones: the same scale, inlier count and residual percentiles as the
+// exhaustive fit, bit for bit, for 40 seeds.
+TEST(DepthScale, SortedInlierCountingEqualsTheExhaustiveFit) {
+  auto& rng = test::Rng();
+  std::uniform_int_distribution<int> step(-12, 12);
+  std::uniform_real_distribution<double> depth(1.0, 50.0), unit(0, 1);
+  for (uint64_t seed = 0; seed < 40; ++seed) {
+    std::vector<double> ref, est;
+    for (int i = 0; i < 400 + 37 * static_cast<int>(seed); ++i) {
+      const double d = depth(rng);
+      const double log_ratio =
+          unit(rng) < 0.7 ? 0.05 * step(rng) : 0.6 * (unit(rng) - 0.5);
+      est.push_back(d);
+      ref.push_back(d * std::exp(log_ratio));
+    }
+    DepthScaleOptions o;
+    o.seed = seed;
+    const DepthScaleResult fast = FitDepthScale(ref, est, o);
+    const DepthScaleResult slow = ExhaustiveFit(ref, est, o);
+    ASSERT_TRUE(fast.success) << fast.message;
+    EXPECT_EQ(fast.scale, slow.scale) << "seed " << seed;
+    EXPECT_EQ(fast.num_inliers, slow.num_inliers) << "seed " << seed;
+    EXPECT_EQ(fast.residual_p50, slow.residual_p50) << "seed " << seed;
+    EXPECT_EQ(fast.residual_p90, slow.residual_p90) << "seed " << seed;
+    EXPECT_EQ(fast.residual_p99, slow.residual_p99) << "seed " << seed;
   }
 }
 
