@@ -9,19 +9,6 @@
 namespace geodrive {
 namespace nuscenes_json {
 
-void JsonField::ResetValue() {
-  kind = kNull;
-  boolean = false;
-  number = 0;
-  integer = 0;
-  is_integer = false;
-  str.clear();
-  numbers.clear();
-  strings.clear();
-  row_sizes.clear();
-  array_of_other = false;
-}
-
 void JsonRecord::Clear() {
   previous_size_ = size_;
   size_ = 0;
@@ -29,22 +16,20 @@ void JsonRecord::Clear() {
   finished_ = false;
 }
 
-JsonField* JsonRecord::Add(const char* key, size_t key_size) {
-  finished_ = false;
-  if (size_ == fields_.size()) {
-    fields_.emplace_back();
-    layout_changed_ = true;
-  }
+JsonField* JsonRecord::AddNewKey(const char* key, size_t key_size) {
+  if (size_ == fields_.size()) fields_.emplace_back();
   JsonField& f = fields_[size_++];
-  if (f.key.size() != key_size || std::memcmp(f.key.data(), key, key_size)) {
-    f.key.assign(key, key_size);
-    layout_changed_ = true;
-  }
+  f.key.assign(key, key_size);
+  layout_changed_ = true;
   f.ResetValue();
   return &f;
 }
 
 void JsonRecord::Finish() {
+  for (size_t i = 0; i < size_; ++i) {
+    JsonField& f = fields_[i];
+    if (f.text_in_str) f.text = f.str;  // after fields_ stopped moving
+  }
   if (layout_changed_ || size_ != previous_size_) ++layout_;
   layout_changed_ = false;
   previous_size_ = size_;
@@ -52,16 +37,11 @@ void JsonRecord::Finish() {
   memo_next_ = 0;
 }
 
-const JsonField* JsonRecord::Find(const char* key) const {
-  // The memo: the i-th Find of a finished record remembers its key (by
-  // address: callers pass literals) and answer for the current key layout.
+const JsonField* JsonRecord::FindAndRemember(const char* key) const {
   Memo* memo = nullptr;
   if (finished_) {
     if (memo_next_ == memo_.size()) memo_.emplace_back();
     memo = &memo_[memo_next_++];
-    if (memo->key == key && memo->layout == layout_) {
-      return memo->index < 0 ? nullptr : &fields_[memo->index];
-    }
   }
   int found = -1;
   for (size_t i = 0; i < size_; ++i) {

@@ -24,9 +24,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace geodrive {
@@ -41,15 +43,35 @@ struct JsonField {
   double number = 0;
   int64_t integer = 0;
   bool is_integer = false;  // the number is an integer in the int64 range
+  // A string value (kString). The fast front end points `text` into
+  // simdjson's string buffer (valid until the record has been handed on:
+  // no copy); the reference one keeps the string in `str`, and
+  // JsonRecord::Finish points `text` at it.
+  std::string_view text;
   std::string str;
+  bool text_in_str = false;
   std::vector<double> numbers;  // array elements (flattened for nested arrays)
   std::vector<std::string> strings;  // array string elements (top level only)
   std::vector<int> row_sizes;   // arrays of arrays: the size of each inner one
   bool array_of_other = false;  // the array holds something else (objects,
                                 // bools, nulls, strings in inner arrays, ...)
 
-  // Resets everything but the key (buffers keep their capacity).
-  void ResetValue();
+  // Resets everything but the key (buffers keep their capacity). Inline: it
+  // runs for every field of every record.
+  void ResetValue() {
+    kind = kNull;
+    boolean = false;
+    number = 0;
+    integer = 0;
+    is_integer = false;
+    text = std::string_view();
+    text_in_str = false;
+    if (!str.empty()) str.clear();
+    if (!numbers.empty()) numbers.clear();
+    if (!strings.empty()) strings.clear();
+    if (!row_sizes.empty()) row_sizes.clear();
+    array_of_other = false;
+  }
 };
 
 // One flat record: fields in file order (keys may repeat; Find returns the
@@ -59,16 +81,44 @@ class JsonRecord {
  public:
   // The first field named `key`, or nullptr. `key` must be a string literal
   // (or outlive the record unchanged): Find remembers answers by its address.
-  const JsonField* Find(const char* key) const;
+  const JsonField* Find(const char* key) const {
+    // The memo: the i-th Find of a finished record remembers its key (by
+    // address: callers pass literals) and answer for the current key layout.
+    if (finished_ && memo_next_ < memo_.size()) {
+      const Memo& memo = memo_[memo_next_];
+      if (memo.key == key && memo.layout == layout_) {
+        ++memo_next_;
+        return memo.index < 0 ? nullptr : &fields_[memo.index];
+      }
+    }
+    return FindAndRemember(key);
+  }
   // Appends a field named `key` (reusing the storage of an earlier record's
   // field) and returns it with its value reset.
-  JsonField* Add(const char* key, size_t key_size);
+  JsonField* Add(const char* key, size_t key_size) {
+    finished_ = false;
+    if (size_ < fields_.size()) {
+      JsonField& f = fields_[size_];
+      if (f.key.size() == key_size &&
+          std::memcmp(f.key.data(), key, key_size) == 0) {
+        ++size_;
+        f.ResetValue();
+        return &f;
+      }
+    }
+    return AddNewKey(key, key_size);
+  }
   void Clear();
   void Finish();
   size_t size() const { return size_; }
   const JsonField& field(size_t i) const { return fields_[i]; }
 
  private:
+  // The slow paths of Find and Add: a scan of the fields (and the memo entry
+  // set), and a key that differs from the previous record's at this place.
+  const JsonField* FindAndRemember(const char* key) const;
+  JsonField* AddNewKey(const char* key, size_t key_size);
+
   std::vector<JsonField> fields_;
   size_t size_ = 0, previous_size_ = 0;
   // Find's memo. Records of one table nearly always have the same keys in the

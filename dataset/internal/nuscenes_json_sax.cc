@@ -64,6 +64,7 @@ class TableSax {
     }
     f->kind = JsonField::kString;
     f->str.swap(v);
+    f->text_in_str = true;
     return true;
   }
   bool binary(json::binary_t&) { return true; }
@@ -94,7 +95,7 @@ class TableSax {
     field_ = nullptr;
     record_.Finish();
     const JsonField* token = record_.Find("token");
-    if (token && token->kind == JsonField::kString) last_token_ = token->str;
+    if (token && token->kind == JsonField::kString) last_token_ = token->text;
     sink_->OnRecord(record_);
     ++records_;
     return true;

@@ -371,7 +371,7 @@ struct SliceParser::Impl {
         std::string_view s;
         if (value.get_string().get(s)) return false;
         f->kind = JsonField::kString;
-        f->str.assign(s.data(), s.size());
+        f->text = s;  // simdjson's string buffer: valid for this slice
         return true;
       }
       case od::json_type::number:
@@ -422,11 +422,6 @@ bool SliceParser::Parse(const Slice& slice, RecordSink* sink) {
           .get(doc)) {
     return false;
   }
-  // The top-level array must end where the slice ends (On Demand would
-  // otherwise ignore what follows it).
-  std::string_view whole;
-  if (doc.raw_json().get(whole) || whole.size() != slice.size) return false;
-  doc.rewind();
   od::array records;
   if (doc.get_array().get(records)) return false;
   for (auto element : records) {
@@ -435,7 +430,12 @@ bool SliceParser::Parse(const Slice& slice, RecordSink* sink) {
     if (!impl_->ReadRecord(object)) return false;
     sink->OnRecord(impl_->record);
   }
-  return true;
+  // The top-level array must end where the slice ends: On Demand would
+  // otherwise ignore what follows it. After the array, the iterator is at the
+  // end of the structural index only if no token follows (current_location
+  // is then OUT_OF_BOUNDS). Checked after the walk rather than with
+  // raw_json() before it, which walked every slice twice.
+  return doc.current_location().error() == simdjson::OUT_OF_BOUNDS;
 }
 
 }  // namespace nuscenes_json
