@@ -70,8 +70,8 @@ for n in sizes:
     dev = json.loads(open(os.path.join(out, f'devkit_{n}.json')).read())
     assert dev['sample_data'] == int(best['sample_data']), (dev, best)
     name = 'v1.0-mini size' if int(n) <= 10 else 'trainval size'
-    print(f'{name:<16}{dev["sample_data"]:>12,}{best["MB"]:>9.1f}  {wall:>8.2f} / {cpu:<7.2f}'
-          f'{peak_rss_mb(os.path.join(out, f"ours_{n}.time")):>8.0f}  {dev["wall_s"]:>9.2f} / '
-          f'{dev["cpu_s"]:<8.2f}{peak_rss_mb(os.path.join(out, f"devkit_{n}.time")):>8.0f}  '
+    print(f'{name:<16}{dev["sample_data"]:>12,}{best["MB"]:>9.1f}  {wall:>8.3f} / {cpu:<7.3f}'
+          f'{peak_rss_mb(os.path.join(out, f"ours_{n}.time")):>8.0f}  {dev["wall_s"]:>9.3f} / '
+          f'{dev["cpu_s"]:<8.3f}{peak_rss_mb(os.path.join(out, f"devkit_{n}.time")):>8.0f}  '
           f'{dev["wall_s"] / wall:>9.1f}x{dev["cpu_s"] / cpu:>9.1f}x')
 EOF

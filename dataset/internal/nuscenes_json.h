@@ -161,7 +161,8 @@ struct Slice {
 
 // Cuts a table file into slices of whole records of about `slice_bytes`
 // each, read with pread into the caller's buffer: the file is never in memory
-// as a whole. Next() is thread-safe; slices come out in file order. A slice
+// as a whole. Next() is thread-safe; slices are claimed in file order (their
+// bytes are read after the claim, by the claiming thread). A slice
 // boundary is a "}" , "{" sequence between records; one found inside a string
 // or a nested value makes simdjson reject the slice (and so the table falls
 // back to the reference front end), never gives wrong records.
@@ -182,6 +183,7 @@ class TableSlicer {
 
  private:
   bool ReadHeader(std::vector<char>* buffer);
+  bool FindSliceEnd(size_t* end, size_t* next);
   bool Fail();
 
   mutable std::mutex mutex_;
@@ -191,6 +193,7 @@ class TableSlicer {
   size_t offset_ = 0;  // file offset of the next record's "{"
   size_t next_index_ = 0;
   bool started_ = false, done_ = false, failed_ = false;
+  std::vector<char> tail_;  // FindSliceEnd's window tail
 };
 
 // Parses slices with simdjson On Demand; one per thread (it owns simdjson's

@@ -11,12 +11,14 @@
 // a mapping count in RSS too, and the index is the same). simdjson 3.0's
 // document streams (iterate_many) take concatenated documents, not the
 // elements of one big array (comma-separated streams came in 3.1). So the
-// table is cut into slices of about 1 MiB: TableSlicer reads the next bytes
-// with pread, finds the last boundary between two records ("}" , "{" with
-// only whitespace around the comma) and hands out "[" + those records + "]";
-// the next slice starts at the "{" after the boundary. Memory is one slice
-// buffer plus simdjson's buffers per thread (a few MiB), and slices of one
-// table parse on several threads at once, so one big table no longer bounds
+// table is cut into slices of about 1 MiB: TableSlicer finds the last
+// boundary between two records ("}" , "{" with only whitespace around the
+// comma) in the next ~1 MiB of the file and hands out "[" + those records +
+// "]"; the next slice starts at the "{" after the boundary. Only the search
+// is serial (under the slicer's lock, in a pread of the window's last 4 KiB);
+// each thread reads its slice's bytes itself, outside the lock. Memory is one
+// slice buffer plus simdjson's buffers per thread (a few MiB), and slices of
+// one table parse on several threads at once, so one big table no longer bounds
 // the load time.
 //
 // Why a slice cannot give wrong records. The first slice starts after the
@@ -155,44 +157,80 @@ bool TableSlicer::ReadHeader(std::vector<char>* buffer) {
   return true;
 }
 
-bool TableSlicer::Next(Slice* slice) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  slice->index = next_index_;
-  if (done_ || failed_) return false;
-  std::vector<char>& buffer = slice->buffer;
-  if (!started_) {
-    started_ = true;
-    if (!ReadHeader(&buffer)) return Fail();
-    if (done_) return false;
-  }
-  // buffer[0] = "[", the records from offset_, then "]" over the byte after
-  // the last record's "}"; a record longer than the slice doubles the read.
+// Under the lock: where the slice that starts at offset_ ends. For the last
+// slice *end is the file size; otherwise *end is one past a record's "}" and
+// *next the offset of the next record's "{". The boundary is searched in the
+// tail of a window of slice_bytes_ (4 KiB of it first, more only when a record
+// is longer); a window without one doubles.
+bool TableSlicer::FindSliceEnd(size_t* end, size_t* next) {
+  constexpr size_t kTail = 4096;
   for (size_t want = slice_bytes_;; want *= 2) {
     const size_t n = std::min(want, file_bytes_ - offset_);
-    if (buffer.size() < n + 2 + kPadding) buffer.resize(n + 2 + kPadding);
-    if (!ReadAt(fd_, buffer.data() + 1, n, offset_)) return Fail();
-    buffer[0] = '[';
-    const char* data = buffer.data() + 1;
     if (offset_ + n == file_bytes_) {
-      // The last slice keeps the file's own "]"; only whitespace may follow.
-      size_t end = n;
-      while (end > 0 && IsSpace(data[end - 1])) --end;
-      if (end == 0 || data[end - 1] != ']') return Fail();
-      slice->begin = 0;
-      slice->size = end + 1;
-      done_ = true;
-      break;
+      *end = file_bytes_;
+      return true;
     }
-    size_t end = 0, next = 0;
-    if (FindBoundary(data, n, &end, &next)) {
-      buffer[1 + end] = ']';
-      slice->begin = 0;
-      slice->size = end + 2;
-      offset_ += next;
-      break;
+    for (size_t tail = std::min(n, kTail);; tail = std::min(n, 4 * tail)) {
+      tail_.resize(tail);
+      const size_t at = offset_ + n - tail;
+      if (!ReadAt(fd_, tail_.data(), tail, at)) return false;
+      size_t e = 0, x = 0;
+      if (FindBoundary(tail_.data(), tail, &e, &x)) {
+        *end = at + e;
+        *next = at + x;
+        return true;
+      }
+      if (tail == n) break;
     }
   }
-  ++next_index_;
+}
+
+bool TableSlicer::Next(Slice* slice) {
+  size_t begin = 0, end = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    slice->index = next_index_;
+    if (done_ || failed_) return false;
+    if (!started_) {
+      started_ = true;
+      if (!ReadHeader(&slice->buffer)) return Fail();
+      if (done_) return false;
+    }
+    size_t next = 0;
+    if (!FindSliceEnd(&end, &next)) return Fail();
+    begin = offset_;
+    if (end == file_bytes_) {
+      done_ = true;
+    } else {
+      offset_ = next;
+    }
+    ++next_index_;
+  }
+  // Outside the lock: buffer[0] = "[", the records, then "]" over the byte
+  // after the last record's "}" (the last slice keeps the file's own "]").
+  const size_t n = end - begin;
+  std::vector<char>& buffer = slice->buffer;
+  if (buffer.size() < n + 2 + kPadding) buffer.resize(n + 2 + kPadding);
+  bool ok = ReadAt(fd_, buffer.data() + 1, n, begin);
+  buffer[0] = '[';
+  const char* data = buffer.data() + 1;
+  slice->begin = 0;
+  if (ok && end == file_bytes_) {
+    // Only whitespace may follow the file's "]".
+    size_t last = n;
+    while (last > 0 && IsSpace(data[last - 1])) --last;
+    ok = last > 0 && data[last - 1] == ']';
+    slice->size = last + 1;
+  } else if (ok) {
+    // The "}" the search found (a file changed since is not trusted).
+    ok = n > 0 && data[n - 1] == '}';
+    buffer[1 + n] = ']';
+    slice->size = n + 2;
+  }
+  if (!ok) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return Fail();
+  }
   return true;
 }
 
