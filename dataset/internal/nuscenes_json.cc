@@ -20,6 +20,7 @@ JsonField* JsonRecord::AddNewKey(const char* key, size_t key_size) {
   if (size_ == fields_.size()) fields_.emplace_back();
   JsonField& f = fields_[size_++];
   f.key.assign(key, key_size);
+  f.key_plain = f.key.find_first_of("\\\"") == std::string::npos;
   layout_changed_ = true;
   f.ResetValue();
   return &f;

@@ -38,6 +38,7 @@ namespace nuscenes_json {
 struct JsonField {
   enum Kind { kNull, kBool, kNumber, kString, kArray, kOther };
   std::string key;
+  bool key_plain = true;  // the key holds no '\\' or '"' (set with it)
   Kind kind = kNull;
   bool boolean = false;
   double number = 0;
@@ -107,6 +108,21 @@ class JsonRecord {
       }
     }
     return AddNewKey(key, key_size);
+  }
+  // The key of the field Add would reuse next, if that key is plain (no
+  // '\\' or '"': raw JSON key bytes equal to it, then a quote, are exactly that
+  // key), else nullptr. With AddSameKey, a front end can recognise a record's
+  // key by comparing raw bytes, without unescaping it.
+  const std::string* NextPlainKey() const {
+    if (size_ >= fields_.size() || !fields_[size_].key_plain) return nullptr;
+    return &fields_[size_].key;
+  }
+  // Add(NextPlainKey()).
+  JsonField* AddSameKey() {
+    finished_ = false;
+    JsonField& f = fields_[size_++];
+    f.ResetValue();
+    return &f;
   }
   void Clear();
   void Finish();

@@ -50,6 +50,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <utility>
 
 #include "dataset/internal/nuscenes_json.h"
 
@@ -434,12 +435,21 @@ struct SliceParser::Impl {
 
   bool ReadRecord(od::object object) {
     record.Clear();
-    for (auto field : object) {
-      std::string_view key;
-      if (field.error() || field.unescaped_key().get(key)) return false;
-      if (!ReadValue(field.value(), record.Add(key.data(), key.size()))) {
-        return false;
+    for (auto field_result : object) {
+      od::field field;
+      if (std::move(field_result).get(field)) return false;
+      // Records of a table nearly always repeat the previous record's keys:
+      // compare the raw key with it instead of unescaping it.
+      JsonField* f = nullptr;
+      const std::string* expected = record.NextPlainKey();
+      if (expected && field.key().unsafe_is_equal(*expected)) {
+        f = record.AddSameKey();
+      } else {
+        std::string_view key;
+        if (field.unescaped_key().get(key)) return false;
+        f = record.Add(key.data(), key.size());
       }
+      if (!ReadValue(field.value(), f)) return false;
     }
     record.Finish();
     return true;

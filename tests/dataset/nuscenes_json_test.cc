@@ -423,6 +423,55 @@ TEST_F(FrontEnds, TheFirstErrorInFileOrderWins) {
   }
 }
 
+// The fast front end recognises a record's keys by comparing their raw bytes
+// with the previous record's keys (no unescaping) when those are plain. A key
+// spelt with escapes ("\u0074imestamp" is "timestamp"), and keys that hold a
+// backslash themselves (raw "a\\tb" is a, backslash, t, b; raw "a\tb" in the
+// next record is a, TAB, b: the same raw bytes after the first backslash, a
+// different key), load exactly as with the reference front end and give the
+// tables of the file without escapes.
+TEST_F(FrontEnds, EscapedKeysAreTheKeysTheySpell) {
+  const std::string root = test::MakeTempDir("nuscenes_json_escaped_keys");
+  test::NuscenesFixture fx;
+  json& sd = fx.tables["sample_data"];
+  ASSERT_GT(sd.size(), 40u);
+  for (auto& record : sd) record["a\\tb"] = 1;  // one backslash in the key
+  fx.Write(root);
+  NuscenesOptions options;
+  options.dataroot = root;
+  const std::string plain = Reference(options);
+  ASSERT_EQ(plain.rfind("error: ", 0), std::string::npos) << plain;
+  const std::string path = root + "/v1.0-mini/sample_data.json";
+  std::string text;
+  {
+    std::ifstream in(path, std::ios::binary);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // Records 20 and 30: "timestamp" and "token" spelt with escapes; record 25:
+  // the backslash key's raw bytes changed into a TAB escape.
+  auto record_at = [&](size_t k) {
+    return text.find(sd[k]["token"].get<std::string>());
+  };
+  const size_t r20 = text.find("\"timestamp\"", record_at(20));
+  ASSERT_NE(r20, std::string::npos);
+  text.replace(r20, 11, "\"\\u0074imestamp\"");
+  const size_t r30 = text.rfind("\"token\"", record_at(30));
+  ASSERT_NE(r30, std::string::npos);
+  text.replace(r30, 7, "\"\\u0074oken\"");
+  const size_t r25 = text.find("\"a\\\\tb\"", record_at(25));
+  ASSERT_NE(r25, std::string::npos);
+  text.replace(r25, 7, "\"a\\tb\"");
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+  const std::string reference = Reference(options);
+  EXPECT_EQ(reference, plain);
+  for (int threads : {1, 2}) {
+    for (size_t slice_bytes : {size_t{700}, size_t{1} << 20}) {
+      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
+          << threads << " " << slice_bytes;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace geodrive
 
