@@ -20,7 +20,10 @@ JsonField* JsonRecord::AddNewKey(const char* key, size_t key_size) {
   if (size_ == fields_.size()) fields_.emplace_back();
   JsonField& f = fields_[size_++];
   f.key.assign(key, key_size);
-  f.key_plain = f.key.find_first_of("\\\"") == std::string::npos;
+  f.key_plain = key_size <= sizeof(f.key32) &&
+                f.key.find_first_of("\\\"") == std::string::npos;
+  std::memset(f.key32, 0, sizeof(f.key32));
+  if (f.key_plain) std::memcpy(f.key32, key, key_size);
   layout_changed_ = true;
   f.ResetValue();
   return &f;

@@ -38,7 +38,10 @@ namespace nuscenes_json {
 struct JsonField {
   enum Kind { kNull, kBool, kNumber, kString, kArray, kOther };
   std::string key;
-  bool key_plain = true;  // the key holds no '\\' or '"' (set with it)
+  // The key holds no '\\' or '"' and has at most 32 bytes (set with it); then
+  // key32 holds it, zero-padded, for 32-byte comparisons.
+  bool key_plain = false;
+  alignas(16) char key32[32] = {};
   Kind kind = kNull;
   bool boolean = false;
   double number = 0;
@@ -109,13 +112,13 @@ class JsonRecord {
     }
     return AddNewKey(key, key_size);
   }
-  // The key of the field Add would reuse next, if that key is plain (no
-  // '\\' or '"': raw JSON key bytes equal to it, then a quote, are exactly that
-  // key), else nullptr. With AddSameKey, a front end can recognise a record's
-  // key by comparing raw bytes, without unescaping it.
-  const std::string* NextPlainKey() const {
+  // The field Add would reuse next, if its key is plain (no '\\' or '"': raw
+  // JSON key bytes equal to it, then a quote, are exactly that key), else
+  // nullptr. With AddSameKey, a front end can recognise a record's key by
+  // comparing raw bytes, without unescaping it.
+  const JsonField* NextPlainKey() const {
     if (size_ >= fields_.size() || !fields_[size_].key_plain) return nullptr;
-    return &fields_[size_].key;
+    return &fields_[size_];
   }
   // Add(NextPlainKey()).
   JsonField* AddSameKey() {
