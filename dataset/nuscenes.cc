@@ -1254,10 +1254,6 @@ int32_t Nuscenes::Find(const std::string& table,
   return FindRow(t, token);
 }
 
-namespace {
-constexpr size_t kPrefetchMinSlots = size_t{1} << 18;
-}  // namespace
-
 void Nuscenes::PrefetchRefs(const std::vector<NuscenesToken>& refs,
                             const int* targets,
                             int per_row,
@@ -1268,12 +1264,7 @@ void Nuscenes::PrefetchRefs(const std::vector<NuscenesToken>& refs,
   const size_t rows = refs.size() / per_row;
   for (int k = 0; k < per_row; ++k) {
     const TokenIndex& index = index_[targets[k]];
-    // An index of up to 256 Ki slots (1 MiB) stays in the L2 cache, and the
-    // rows references point at are mostly near each other (sample_data and
-    // its ego poses come in the same order): prefetching pays only for big
-    // tables (v1.0-trainval: 8 Mi slots per big table). At v1.0-mini size
-    // the prefetches were 3.4 % of a load's instructions, for nothing.
-    if (index.slots.size() <= kPrefetchMinSlots) continue;
+    if (index.slots.empty()) continue;
     if (row + kSlotAhead < rows) {
       const NuscenesToken& t = refs[(row + kSlotAhead) * per_row + k];
       if (!t.empty())
