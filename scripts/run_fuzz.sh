@@ -14,6 +14,8 @@
 #   FUZZ_MAX_RUNS  stop earlier after this many executions (libFuzzer's -runs; 10000000 for the
 #                  long runs of docs/RELIABILITY.md)
 #   FUZZ_TIMEOUT   seconds one input may take before it is a hang finding (default 10)
+#   FUZZ_JOBS      targets run at once (default 1; scripts/run_sanitizers.sh uses one per core);
+#                  the per-target lines still come out in target order
 #   TMPDIR         where each target writes its input file (default /dev/shm when writable: on
 #                  a disk the targets spend most of their time in the file system, 3x fewer
 #                  executions per second)
@@ -39,10 +41,11 @@ clock=${FUZZ_CLOCK:-wall}
 limits=(-timeout="${FUZZ_TIMEOUT:-10}" -runs="${FUZZ_MAX_RUNS:--1}")
 [[ $clock == wall ]] && limits+=(-max_total_time="$seconds")
 ticks_per_second=$(getconf CLK_TCK)
-status=0
-for t in "${targets[@]}"; do
+# One target: its corpus, the fuzzer, the CPU-time watch; its lines go to $work/$t.summary and
+# its status is the function's.
+run_target() {
+  local t=$1
   bin="$build/fuzz/fuzz_$t"
-  [[ -x "$bin" ]] || { echo "run_fuzz: $bin not built" >&2; exit 2; }
   dir="$work/$t"
   rm -rf "$dir" && mkdir -p "$dir/corpus" "$dir/findings"
   [[ -d fuzz/corpus/$t ]] && cp fuzz/corpus/"$t"/* "$dir/corpus/"
@@ -72,10 +75,10 @@ for t in "${targets[@]}"; do
     result=ok
   else
     result=FINDING
-    status=1
   fi
   runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || echo "?")
+  {
   echo "fuzz_$t: $result, $runs executions in $((cpu_ticks / ticks_per_second)) CPU-s (limit ${seconds}s $clock), coverage $cov, corpus $(ls "$dir/corpus" | wc -l) inputs"
   if [[ $result != ok ]]; then
     grep -m 5 -E 'ERROR|SUMMARY|==[0-9]+==|deadly|uncaught|Test unit written' "$log" | sed 's/^/  /' || true
@@ -90,5 +93,41 @@ for t in "${targets[@]}"; do
       fi
     done
   fi
+  } > "$dir.summary.part"
+  mv "$dir.summary.part" "$dir.summary"  # whole, so the main loop prints it whole
+  [[ $result == ok ]]
+}
+
+for t in "${targets[@]}"; do
+  [[ -x "$build/fuzz/fuzz_$t" ]] || { echo "run_fuzz: $build/fuzz/fuzz_$t not built" >&2; exit 2; }
 done
+jobs_max=${FUZZ_JOBS:-1}
+[[ $jobs_max =~ ^[1-9][0-9]*$ ]] || { echo "run_fuzz: FUZZ_JOBS must be a positive integer, not '$jobs_max'" >&2; exit 2; }
+for t in "${targets[@]}"; do rm -f "$work/$t.summary"; done
+# Prints the lines of the targets that have finished, in target order, up to the first one
+# still running.
+printed=0
+print_finished() {
+  while (( printed < ${#targets[@]} )) && [[ -f "$work/${targets[$printed]}.summary" ]]; do
+    cat "$work/${targets[$printed]}.summary"
+    printed=$((printed + 1))
+  done
+}
+status=0
+running=0
+for t in "${targets[@]}"; do
+  if (( running >= jobs_max )); then
+    wait -n || status=1
+    running=$((running - 1))
+    print_finished
+  fi
+  run_target "$t" &
+  running=$((running + 1))
+done
+while (( running > 0 )); do
+  wait -n || status=1
+  running=$((running - 1))
+  print_finished
+done
+print_finished
 exit $status

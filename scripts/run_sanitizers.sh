@@ -45,4 +45,5 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-2}"
 costs="$build"/Testing/Temporary/CTestCostData.txt
 [[ -f $costs ]] || { mkdir -p "$(dirname "$costs")" && cp tests/ctest_costs/asan.txt "$costs"; }
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)" --timeout 1500 -LE install -E 'HostileSizes'
-bash scripts/run_fuzz.sh "$build" "${FUZZ_SECONDS:-20}"
+# The fuzz targets one per core (each its own process; the lines come out in target order).
+FUZZ_JOBS="${FUZZ_JOBS:-$(nproc)}" bash scripts/run_fuzz.sh "$build" "${FUZZ_SECONDS:-20}"
