@@ -428,8 +428,9 @@ TEST_F(FrontEnds, TheFirstErrorInFileOrderWins) {
 // spelt with escapes ("\u0074imestamp" is "timestamp"), and keys that hold a
 // backslash themselves (raw "a\\tb" is a, backslash, t, b; raw "a\tb" in the
 // next record is a, TAB, b: the same raw bytes after the first backslash, a
-// different key), load exactly as with the reference front end and give the
-// tables of the file without escapes.
+// different key), and a key that extends the previous record's ("prevX"
+// where "prev" was), load exactly as with the reference front end and give
+// the tables of the file without them.
 TEST_F(FrontEnds, EscapedKeysAreTheKeysTheySpell) {
   const std::string root = test::MakeTempDir("nuscenes_json_escaped_keys");
   test::NuscenesFixture fx;
@@ -461,6 +462,11 @@ TEST_F(FrontEnds, EscapedKeysAreTheKeysTheySpell) {
   const size_t r25 = text.find("\"a\\\\tb\"", record_at(25));
   ASSERT_NE(r25, std::string::npos);
   text.replace(r25, 7, "\"a\\tb\"");
+  // Record 35: an unknown key that starts with the previous record's key at
+  // that place ("prevX" where "prev" was) is another key, not "prev".
+  const size_t r35 = text.find("\"prev\"", record_at(35));
+  ASSERT_NE(r35, std::string::npos);
+  text.insert(r35, "\"prevX\": \"\", ");
   std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
   const std::string reference = Reference(options);
   EXPECT_EQ(reference, plain);
