@@ -478,6 +478,42 @@ TEST_F(FrontEnds, EscapedKeysAreTheKeysTheySpell) {
   }
 }
 
+// A "]" right after a record's "}" ends the top-level array early: the
+// rest of the file is then trailing garbage, a JSON error for the reference
+// front end. The fast one must not take the records before it as the whole
+// table (On Demand stops at the "]" without an error; the slice parser
+// checks that nothing follows it).
+TEST_F(FrontEnds, ArrayClosedEarlyIsTheReferenceError) {
+  const std::string root = test::MakeTempDir("nuscenes_json_early_close");
+  test::NuscenesFixture fx;
+  const json& sd = fx.tables["sample_data"];
+  ASSERT_GT(sd.size(), 40u);
+  fx.Write(root);
+  const std::string path = root + "/v1.0-mini/sample_data.json";
+  std::string text;
+  {
+    std::ifstream in(path, std::ios::binary);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // The "}" that closes the record holding the 20th record's token.
+  const size_t at =
+      text.find('}', text.find(sd[20]["token"].get<std::string>()));
+  ASSERT_NE(at, std::string::npos);
+  text.insert(at + 1, "]");
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+  NuscenesOptions options;
+  options.dataroot = root;
+  const std::string reference = Reference(options);
+  EXPECT_EQ(reference.rfind("error: ", 0), 0u) << reference;
+  EXPECT_NE(reference.find("sample_data.json"), std::string::npos) << reference;
+  for (int threads : {1, 2}) {
+    for (size_t slice_bytes : {size_t{700}, size_t{1} << 20}) {
+      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
+          << threads << " " << slice_bytes;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace geodrive
 
