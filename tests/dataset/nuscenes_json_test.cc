@@ -514,6 +514,30 @@ TEST_F(FrontEnds, ArrayClosedEarlyIsTheReferenceError) {
   }
 }
 
+// The slicer looks for a slice's last record boundary in the last 4 KiB of
+// its window first, then in 16 KiB, ...: records of 6 KiB (an unknown field
+// holds the bulk) put whole 4 KiB tails inside one record. The tables are the
+// reference's, and no table falls back.
+TEST_F(FrontEnds, RecordsLongerThanTheBoundarySearchTail) {
+  const std::string root = test::MakeTempDir("nuscenes_json_long_records");
+  test::NuscenesFixture fx;
+  for (auto& record : fx.tables["sample_data"])
+    record["note"] = std::string(6000, 'x');
+  fx.Write(root);
+  NuscenesOptions options;
+  options.dataroot = root;
+  const std::string reference = Reference(options);
+  ASSERT_EQ(reference.rfind("error: ", 0), std::string::npos) << reference;
+  const size_t fallbacks = nj::FallbackCount();
+  for (int threads : {1, 2}) {
+    for (size_t slice_bytes : {size_t{5000}, size_t{20000}, size_t{70000}}) {
+      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
+          << threads << " " << slice_bytes;
+    }
+  }
+  EXPECT_EQ(nj::FallbackCount(), fallbacks);
+}
+
 }  // namespace
 }  // namespace geodrive
 
