@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <random>
 #include <sstream>
 
@@ -158,6 +159,28 @@ std::string Fast(NuscenesOptions options, int threads, size_t slice_bytes) {
   nj::SetSliceBytes(slice_bytes);
   options.num_threads = threads;
   return Outcome(options);
+}
+
+// A table file's text, and writing it back.
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+}
+
+// The fast front end, with 1 and 2 threads and each slice size, ends as
+// `reference` does.
+void ExpectFastAsReference(const NuscenesOptions& options,
+                           const std::string& reference,
+                           std::initializer_list<size_t> slice_sizes) {
+  for (int threads : {1, 2}) {
+    for (size_t slice_bytes : slice_sizes) {
+      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
+          << threads << " threads, " << slice_bytes << " B slices";
+    }
+  }
 }
 
 TEST(NuscenesHexTokens, EveryByteAtEveryPosition) {
@@ -443,11 +466,7 @@ TEST_F(FrontEnds, EscapedKeysAreTheKeysTheySpell) {
   const std::string plain = Reference(options);
   ASSERT_EQ(plain.rfind("error: ", 0), std::string::npos) << plain;
   const std::string path = root + "/v1.0-mini/sample_data.json";
-  std::string text;
-  {
-    std::ifstream in(path, std::ios::binary);
-    text.assign(std::istreambuf_iterator<char>(in), {});
-  }
+  std::string text = ReadText(path);
   // Records 20 and 30: "timestamp" and "token" spelt with escapes; record 25:
   // the backslash key's raw bytes changed into a TAB escape.
   auto record_at = [&](size_t k) {
@@ -467,15 +486,10 @@ TEST_F(FrontEnds, EscapedKeysAreTheKeysTheySpell) {
   const size_t r35 = text.find("\"prev\"", record_at(35));
   ASSERT_NE(r35, std::string::npos);
   text.insert(r35, "\"prevX\": \"\", ");
-  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+  WriteText(path, text);
   const std::string reference = Reference(options);
   EXPECT_EQ(reference, plain);
-  for (int threads : {1, 2}) {
-    for (size_t slice_bytes : {size_t{700}, size_t{1} << 20}) {
-      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
-          << threads << " " << slice_bytes;
-    }
-  }
+  ExpectFastAsReference(options, reference, {700, size_t{1} << 20});
 }
 
 // A "]" right after a record's "}" ends the top-level array early: the
@@ -490,28 +504,19 @@ TEST_F(FrontEnds, ArrayClosedEarlyIsTheReferenceError) {
   ASSERT_GT(sd.size(), 40u);
   fx.Write(root);
   const std::string path = root + "/v1.0-mini/sample_data.json";
-  std::string text;
-  {
-    std::ifstream in(path, std::ios::binary);
-    text.assign(std::istreambuf_iterator<char>(in), {});
-  }
+  std::string text = ReadText(path);
   // The "}" that closes the record holding the 20th record's token.
   const size_t at =
       text.find('}', text.find(sd[20]["token"].get<std::string>()));
   ASSERT_NE(at, std::string::npos);
   text.insert(at + 1, "]");
-  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+  WriteText(path, text);
   NuscenesOptions options;
   options.dataroot = root;
   const std::string reference = Reference(options);
   EXPECT_EQ(reference.rfind("error: ", 0), 0u) << reference;
   EXPECT_NE(reference.find("sample_data.json"), std::string::npos) << reference;
-  for (int threads : {1, 2}) {
-    for (size_t slice_bytes : {size_t{700}, size_t{1} << 20}) {
-      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
-          << threads << " " << slice_bytes;
-    }
-  }
+  ExpectFastAsReference(options, reference, {700, size_t{1} << 20});
 }
 
 // The slicer looks for a slice's last record boundary in the last 4 KiB of
@@ -529,12 +534,7 @@ TEST_F(FrontEnds, RecordsLongerThanTheBoundarySearchTail) {
   const std::string reference = Reference(options);
   ASSERT_EQ(reference.rfind("error: ", 0), std::string::npos) << reference;
   const size_t fallbacks = nj::FallbackCount();
-  for (int threads : {1, 2}) {
-    for (size_t slice_bytes : {size_t{5000}, size_t{20000}, size_t{70000}}) {
-      EXPECT_EQ(Fast(options, threads, slice_bytes), reference)
-          << threads << " " << slice_bytes;
-    }
-  }
+  ExpectFastAsReference(options, reference, {5000, 20000, 70000});
   EXPECT_EQ(nj::FallbackCount(), fallbacks);
 }
 
