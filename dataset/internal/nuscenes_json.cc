@@ -29,11 +29,14 @@ JsonField* JsonRecord::AddNewKey(const char* key, size_t key_size) {
   return &f;
 }
 
-void JsonRecord::Finish() {
+void JsonRecord::PointTextsAtStrings() {
   for (size_t i = 0; i < size_; ++i) {
     JsonField& f = fields_[i];
     if (f.text_in_str) f.text = f.str;  // after fields_ stopped moving
   }
+}
+
+void JsonRecord::Finish() {
   if (layout_changed_ || size_ != previous_size_) ++layout_;
   layout_changed_ = false;
   previous_size_ = size_;

@@ -50,7 +50,7 @@ struct JsonField {
   // A string value (kString). The fast front end points `text` into
   // simdjson's string buffer (valid until the record has been handed on:
   // no copy); the reference one keeps the string in `str`, and
-  // JsonRecord::Finish points `text` at it.
+  // JsonRecord::PointTextsAtStrings points `text` at it.
   std::string_view text;
   std::string str;
   bool text_in_str = false;
@@ -128,6 +128,10 @@ class JsonRecord {
     return &f;
   }
   void Clear();
+  // For a front end that keeps strings in JsonField::str (the reference
+  // one): points every such field's text at its str. Call before Finish,
+  // once no field is added any more (adding may move the fields).
+  void PointTextsAtStrings();
   void Finish();
   size_t size() const { return size_; }
   const JsonField& field(size_t i) const { return fields_[i]; }

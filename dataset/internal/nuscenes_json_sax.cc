@@ -93,6 +93,7 @@ class TableSax {
     }
     depth_ = 1;
     field_ = nullptr;
+    record_.PointTextsAtStrings();
     record_.Finish();
     const JsonField* token = record_.Find("token");
     if (token && token->kind == JsonField::kString) last_token_ = token->text;
