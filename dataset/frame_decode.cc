@@ -290,20 +290,22 @@ cv::Mat ReadFrameAtOutputSize(const std::string& path,
     return ResizeFrameToOutput(rgb, spec);
   }
   // The header alone gives the full size (a scaled decode cannot tell 1599
-  // from 1600 columns) and the EXIF orientation.
-  const ImageHeader header = ReadImageHeader(path);
+  // from 1600 columns) and the EXIF orientation. The file is read once for
+  // both.
+  const ImageFile file = ReadImageFile(path);
+  const ImageHeader header = ReadImageHeader(file);
   check_size(header.size);
   const JpegScale scale =
       header.jpeg ? ChooseScale(width, height, spec, options,
                                 /*whole_sizes_only=*/header.orientation != 1)
                   : JpegScale{1, 1};
   if (scale.num == scale.denom) {
-    const cv::Mat rgb = ReadImageRgb(path);
+    const cv::Mat rgb = DecodeImageRgb(file);
     check_size(rgb.size());
     return FullFrameToOutput(rgb, spec);
   }
-  return ResizeScaledFrame(ReadImageRgbScaled(path, scale), width, height,
-                           scale, spec);
+  return ResizeScaledFrame(DecodeImageRgb(file, scale), width, height, scale,
+                           spec);
 }
 
 }  // namespace geodrive

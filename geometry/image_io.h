@@ -108,4 +108,19 @@ ImageHeader ReadImageHeader(const std::string& path);
 // ReadImageHeader(path).size.
 cv::Size ReadImageSize(const std::string& path);
 
+// An image file read into memory once, for a header check and a decode that
+// would otherwise each read (and scan) the file.
+struct ImageFile {
+  std::string path;            // named in errors
+  std::vector<uint8_t> bytes;  // the whole file
+};
+// Reads `path` (InputError naming it when unreadable, empty or neither a JPEG
+// nor a PNG).
+ImageFile ReadImageFile(const std::string& path);
+// ReadImageHeader of a file already read.
+ImageHeader ReadImageHeader(const ImageFile& file);
+// ReadImageRgbScaled(path, scale) of a file already read: the same pixels and
+// errors; scale 1/1 is ReadImageRgb(path).
+cv::Mat DecodeImageRgb(const ImageFile& file, JpegScale scale = {});
+
 }  // namespace geodrive

@@ -480,6 +480,48 @@ TEST(ImageIo, ReadImageSizeMatchesDecodedSize) {
                 "data)");
 }
 
+// A file read once (ImageFile) gives the header and pixels of the path-based
+// readers, and the same errors, naming the file.
+TEST(ImageIo, ImageFileReadOnceDecodesAsThePathReaders) {
+  const std::string real = test::RealDataPath(kNuscenesJpeg);
+  const ImageFile file = ReadImageFile(real);
+  EXPECT_EQ(file.path, real);
+  EXPECT_EQ(ReadImageHeader(file).size, cv::Size(1600, 900));
+  EXPECT_TRUE(ReadImageHeader(file).jpeg);
+  EXPECT_EQ(MaxAbsDiff(DecodeImageRgb(file), ReadImageRgb(real)), 0.0);
+  const cv::Mat half = DecodeImageRgb(file, JpegScale{1, 2});
+  EXPECT_EQ(half.size(), cv::Size(800, 450));
+  EXPECT_EQ(MaxAbsDiff(half, ReadImageRgbScaled(real, JpegScale{1, 2})), 0.0);
+  EXPECT_EQ(ErrorOf([&] {
+              DecodeImageRgb(file, JpegScale{3, 7});
+            }),
+            real +
+                ": cannot decode a 1600x900 JPEG at scale 3/7 (not one of "
+                "libjpeg-turbo's scales for that size)");
+
+  const std::string dir = test::MakeTempDir("img_file");
+  WriteImageRgb(dir + "/a.png", RandomImage(17, 29, CV_8UC3));
+  const ImageFile png = ReadImageFile(dir + "/a.png");
+  EXPECT_FALSE(ReadImageHeader(png).jpeg);
+  EXPECT_EQ(MaxAbsDiff(DecodeImageRgb(png), ReadImageRgb(dir + "/a.png")), 0.0);
+  // Bytes cut short: the same error as reading the cut file.
+  ImageFile cut = file;
+  cut.bytes.resize(cut.bytes.size() / 2);
+  EXPECT_EQ(ErrorOf([&] { DecodeImageRgb(cut); }),
+            real + ": truncated or corrupt JPEG (no end-of-image marker)");
+  EXPECT_EQ(ErrorOf([&] { ReadImageHeader(cut); }),
+            real + ": truncated or corrupt JPEG (no end-of-image marker)");
+  // Bytes that are no image (a caller-made ImageFile) are refused, not
+  // decoded.
+  const ImageFile junk{"junk.bin", std::vector<uint8_t>(64, 7)};
+  EXPECT_EQ(ErrorOf([&] { DecodeImageRgb(junk); }),
+            "junk.bin: not a readable image (unknown format or corrupt data)");
+  EXPECT_EQ(ErrorOf([&] {
+              ReadImageHeader(ImageFile{"e.jpg", {}});
+            }),
+            "e.jpg: empty file (expected an image)");
+}
+
 // ---- Pixels identical to cv::imdecode ----
 
 TEST(ImageIo, RealImagesDecodeExactlyAsOpenCv) {
