@@ -34,6 +34,7 @@
 
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
+#include "geometry/image_resize.h"  // AreaResizeRgb
 
 namespace geodrive {
 
@@ -98,19 +99,5 @@ cv::Mat FullFrameToOutput(const cv::Mat& rgb, const ImageResizeSpec& spec);
 // builder's rule before issue 23, unchanged; the kFull path). Returns a new
 // image.
 cv::Mat ResizeFrameToOutput(const cv::Mat& rgb, const ImageResizeSpec& spec);
-
-// Area resampling (cv::INTER_AREA's weights) of the top-left extent_width x
-// extent_height of `rgb` (CV_8UC3) onto `size`: output pixel (x, y) averages
-// the source area [x * sx, (x + 1) * sx) x [y * sy, (y + 1) * sy) with sx =
-// extent_width / size.width, sy = extent_height / size.height. The extent may
-// end inside the last column or row (a scaled decode's partial pixel, which
-// then counts with its fraction) and must lie within rgb and be at least
-// `size` on both axes (InputError otherwise): it only shrinks. Separable, in
-// float; equals cv::resize(INTER_AREA) within 1 level when the extent is rgb's
-// size (the sums run in another order). Returns a new continuous image.
-cv::Mat AreaResizeRgb(const cv::Mat& rgb,
-                      double extent_width,
-                      double extent_height,
-                      const cv::Size& size);
 
 }  // namespace geodrive

@@ -80,7 +80,7 @@ cv::Mat MakeContactSheet(const std::vector<cv::Mat>& frames_rgb,
                          const std::vector<cv::Mat>& ground_truth_rgb = {},
                          const ContactSheetOptions& options = {});
 
-// The thumbnail MakeContactSheet draws for `frame_rgb` (INTER_AREA to
+// The thumbnail MakeContactSheet draws for `frame_rgb` (INTER_AREA weights to
 // thumb_width, aspect kept). A sheet made of these thumbnails equals the
 // sheet made of the frames, so a streaming caller keeps only thumbnails.
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame_rgb,

@@ -120,5 +120,38 @@ TEST(Video, ContactSheetLayoutWithGroundTruthAbove) {
   EXPECT_THROW(WriteVideo("/nonexistent_dir/x.mp4", {}), InputError);
 }
 
+// Thumbnails take AreaResizeRgb when they shrink an RGB frame: cv::resize's
+// INTER_AREA within 1 level (its float sums run in another order), at the
+// builder's 720x480 -> 160 (a non-integer 4.5x) and an integer 2x; other
+// cases (growing, gray) are cv::resize itself.
+TEST(Video, ContactSheetThumbnailIsInterArea) {
+  cv::RNG rng(5);
+  cv::Mat frame(480, 720, CV_8UC3);
+  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(frame, frame, cv::Size(5, 5), 1.0);  // some structure
+  for (int width : {160, 360, 719}) {
+    ContactSheetOptions o;
+    o.thumb_width = width;
+    const cv::Mat thumb = ContactSheetThumbnail(frame, o);
+    cv::Mat ref;
+    cv::resize(frame, ref, thumb.size(), 0, 0, cv::INTER_AREA);
+    ASSERT_EQ(thumb.type(), CV_8UC3);
+    EXPECT_EQ(thumb.size(), ref.size());
+    EXPECT_LE(cv::norm(thumb, ref, cv::NORM_INF), 1.0) << width;
+    // A sheet of thumbnails is the sheet of the frames.
+    EXPECT_EQ(cv::norm(MakeContactSheet({thumb}, {thumb}, o),
+                       MakeContactSheet({frame}, {frame}, o), cv::NORM_INF),
+              0.0);
+  }
+  ContactSheetOptions grow;
+  grow.thumb_width = 800;
+  cv::Mat ref;
+  const cv::Mat big = ContactSheetThumbnail(frame, grow);
+  cv::resize(frame, ref, big.size(), 0, 0, cv::INTER_AREA);
+  EXPECT_EQ(cv::norm(big, ref, cv::NORM_INF), 0.0);
+  cv::Mat gray(48, 64, CV_8UC1, cv::Scalar(9));
+  EXPECT_EQ(ContactSheetThumbnail(gray, grow).type(), CV_8UC1);
+}
+
 }  // namespace
 }  // namespace geodrive
