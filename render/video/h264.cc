@@ -166,7 +166,10 @@ void H264Mp4Writer::Write(const cv::Mat& frame_rgb) {
                        m.path, ": frame ", m.frames, " is not an RGB ", m.w,
                        "x", m.h, " image");
   const int ew = m.ew, eh = m.eh;
-  frame_rgb.copyTo(m.padded(cv::Rect(0, 0, m.w, m.h)));
+  // Odd sides are padded to even ones (black); even-sized frames convert
+  // from the caller's image directly (no 1 MB copy a 720x480 frame).
+  const bool direct = ew == m.w && eh == m.h;
+  if (!direct) frame_rgb.copyTo(m.padded(cv::Rect(0, 0, m.w, m.h)));
   // A fresh, fully zeroed frame each time (the encoder may keep a reference
   // to the previous one, and uninitialised row padding would make the output
   // depend on heap contents).
@@ -183,7 +186,7 @@ void H264Mp4Writer::Write(const cv::Mat& frame_rgb) {
   }
   // RGB -> YUV 4:2:0 (BT.601, limited range) with OpenCV: deterministic and
   // independent of buffer alignment (swscale picks SIMD paths by alignment).
-  cv::cvtColor(m.padded, m.yuv, cv::COLOR_RGB2YUV_I420);
+  cv::cvtColor(direct ? frame_rgb : m.padded, m.yuv, cv::COLOR_RGB2YUV_I420);
   const uint8_t* y = m.yuv.ptr<uint8_t>(0);
   const uint8_t* u = y + static_cast<size_t>(ew) * eh;
   const uint8_t* v = u + static_cast<size_t>(ew / 2) * (eh / 2);
