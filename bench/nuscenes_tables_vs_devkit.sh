@@ -14,6 +14,12 @@
 # REPS (ours: repetitions, best wall taken; devkit: best of REPS loads at
 # mini size, one load at trainval size -- it needs ~10 GB; default 3).
 # Each size runs in its own processes so the peak RSS is that size's.
+# ROUNDS (default 1): run ours and the devkit that many times, alternating,
+# each in fresh processes, and add a line with the median over the rounds of
+# each side's best. On a shared VM a fresh python3 process's best-of-10 load of
+# the mini-size tables came out 0.21 s in some processes and 0.33-0.42 s in
+# others within one quiet minute (December 2026), so one round's ratio can be
+# off by 1.7x either way; use ROUNDS=5 or more for a figure.
 set -euo pipefail
 
 BUILD_DIR=${1:-build}
@@ -22,6 +28,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 export GEODRIVE_BENCH_DIR=${GEODRIVE_BENCH_DIR:-/tmp/geodrive_bench_nuscenes}
 SIZES=${SIZES:-"10 850"}
 REPS=${REPS:-3}
+ROUNDS=${ROUNDS:-1}
 if [[ ! -x "$BENCH" ]]; then
   echo "no $BENCH: configure with -DGEODRIVE_BUILD_BENCH=ON and build bench_nuscenes" >&2
   exit 2
@@ -39,20 +46,22 @@ for n in $SIZES; do
     "$BENCH" --benchmark_filter="BM_Load/$n/0/" > /dev/null
   fi
   cat "$root"/v1.0-bench/*.json > /dev/null  # both read from the page cache
-  /usr/bin/time -v -o "$OUT/ours_$n.time" "$BENCH" --benchmark_filter="BM_Load/$n/0/" \
-    --benchmark_repetitions="$REPS" --benchmark_out="$OUT/ours_$n.json" \
-    --benchmark_out_format=json > /dev/null
   devkit_reps=$REPS
   [[ $n -gt 100 ]] && devkit_reps=1
-  /usr/bin/time -v -o "$OUT/devkit_$n.time" /usr/bin/python3 "$HERE/nuscenes_devkit_tables.py" \
-    "$root" v1.0-bench "$devkit_reps" > "$OUT/devkit_$n.json"
+  for ((r = 1; r <= ROUNDS; ++r)); do
+    /usr/bin/time -v -o "$OUT/ours_${n}_$r.time" "$BENCH" --benchmark_filter="BM_Load/$n/0/" \
+      --benchmark_repetitions="$REPS" --benchmark_out="$OUT/ours_${n}_$r.json" \
+      --benchmark_out_format=json > /dev/null
+    /usr/bin/time -v -o "$OUT/devkit_${n}_$r.time" /usr/bin/python3 \
+      "$HERE/nuscenes_devkit_tables.py" "$root" v1.0-bench "$devkit_reps" > "$OUT/devkit_${n}_$r.json"
+  done
 done
 
 echo "== ours (bench_nuscenes BM_Load/<scenes>/0, best of $REPS) vs the devkit's loading code"
-/usr/bin/python3 - "$OUT" "$SIZES" <<'EOF'
-import json, os, re, sys
+/usr/bin/python3 - "$OUT" "$SIZES" "$ROUNDS" <<'EOF'
+import json, os, re, statistics, sys
 
-out, sizes = sys.argv[1], sys.argv[2].split()
+out, sizes, rounds = sys.argv[1], sys.argv[2].split(), int(sys.argv[3])
 
 
 def peak_rss_mb(path):
@@ -63,15 +72,25 @@ def peak_rss_mb(path):
 print(f'{"tables":<16}{"sample_data":>12}{"JSON MB":>9}  {"ours wall / CPU s":>18}{"RSS MB":>8}'
       f'  {"devkit wall / CPU s":>20}{"RSS MB":>8}  {"ratio wall":>10}{"ratio CPU":>10}')
 for n in sizes:
-    runs = [b for b in json.load(open(os.path.join(out, f'ours_{n}.json')))['benchmarks']
-            if b.get('run_type') == 'iteration']
-    best = min(runs, key=lambda b: b['real_time'])
-    wall, cpu = best['real_time'] / 1e3, best['cpu_time'] / 1e3
-    dev = json.loads(open(os.path.join(out, f'devkit_{n}.json')).read())
-    assert dev['sample_data'] == int(best['sample_data']), (dev, best)
     name = 'v1.0-mini size' if int(n) <= 10 else 'trainval size'
-    print(f'{name:<16}{dev["sample_data"]:>12,}{best["MB"]:>9.1f}  {wall:>8.3f} / {cpu:<7.3f}'
-          f'{peak_rss_mb(os.path.join(out, f"ours_{n}.time")):>8.0f}  {dev["wall_s"]:>9.3f} / '
-          f'{dev["cpu_s"]:<8.3f}{peak_rss_mb(os.path.join(out, f"devkit_{n}.time")):>8.0f}  '
-          f'{dev["wall_s"] / wall:>9.1f}x{dev["cpu_s"] / cpu:>9.1f}x')
+    rows = []
+    for r in range(1, rounds + 1):
+        runs = [b for b in json.load(open(os.path.join(out, f'ours_{n}_{r}.json')))['benchmarks']
+                if b.get('run_type') == 'iteration']
+        best = min(runs, key=lambda b: b['real_time'])
+        dev = json.loads(open(os.path.join(out, f'devkit_{n}_{r}.json')).read())
+        assert dev['sample_data'] == int(best['sample_data']), (dev, best)
+        rows.append(dict(rows=dev['sample_data'], mb=best['MB'],
+                         wall=best['real_time'] / 1e3, cpu=best['cpu_time'] / 1e3,
+                         rss=peak_rss_mb(os.path.join(out, f'ours_{n}_{r}.time')),
+                         dwall=dev['wall_s'], dcpu=dev['cpu_s'],
+                         drss=peak_rss_mb(os.path.join(out, f'devkit_{n}_{r}.time'))))
+    if rounds > 1:
+        med = {k: statistics.median(x[k] for x in rows) for k in rows[0]}
+        rows.append(med)
+    for i, x in enumerate(rows):
+        label = name if i < rounds else f'median of {rounds}'
+        print(f'{label:<16}{int(x["rows"]):>12,}{x["mb"]:>9.1f}  {x["wall"]:>8.3f} / {x["cpu"]:<7.3f}'
+              f'{x["rss"]:>8.0f}  {x["dwall"]:>9.3f} / {x["dcpu"]:<8.3f}{x["drss"]:>8.0f}  '
+              f'{x["dwall"] / x["wall"]:>9.1f}x{x["dcpu"] / x["cpu"]:>9.1f}x')
 EOF
