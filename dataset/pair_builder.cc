@@ -81,36 +81,6 @@ bool IsVehicle(const std::string& category) {
   return category.rfind("vehicle.", 0) == 0;
 }
 
-// PSNR (dB, data range 255) over the pixels where mask != 0; nullopt if none.
-// Integer sums (exact, so the same value as summing in double), branch-free
-// so that the compiler vectorises the row loop.
-std::optional<double> MaskedPsnr(const cv::Mat& a,
-                                 const cv::Mat& b,
-                                 const cv::Mat& mask) {
-  int64_t se = 0;
-  int64_t n = 0;
-  for (int y = 0; y < a.rows; ++y) {
-    const uint8_t* pa = a.ptr<uint8_t>(y);
-    const uint8_t* pb = b.ptr<uint8_t>(y);
-    const uint8_t* pm = mask.ptr<uint8_t>(y);
-    int64_t row_se = 0;
-    int row_n = 0;
-    for (int x = 0; x < a.cols; ++x) {
-      const int m = pm[x] != 0;
-      const int d0 = pa[3 * x] - pb[3 * x];
-      const int d1 = pa[3 * x + 1] - pb[3 * x + 1];
-      const int d2 = pa[3 * x + 2] - pb[3 * x + 2];
-      row_se += m * (d0 * d0 + d1 * d1 + d2 * d2);
-      row_n += m;
-    }
-    se += row_se;
-    n += 3 * row_n;
-  }
-  if (n == 0) return std::nullopt;
-  const double mse = static_cast<double>(se) / n;
-  return mse <= 0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
-}
-
 ImageResizeSpec OutputSpec(const PinholeCamera& cam,
                            const BuildDatasetOptions& opt) {
   return ComputeResizeSpec(cam.width, cam.height, opt.width, opt.height,
@@ -147,6 +117,42 @@ std::optional<double> StaticPsnr(const cv::Mat& cond,
 }
 
 }  // namespace
+
+std::optional<double> MaskedPsnr(const cv::Mat& a,
+                                 const cv::Mat& b,
+                                 const cv::Mat& mask) {
+  int64_t se = 0;
+  int64_t n = 0;
+  // The mask spread to the row's bytes (0 or 1 per byte), so that the sum
+  // runs over contiguous bytes, a loop the compiler vectorises (with the
+  // per-pixel mask inside: 27 instructions a pixel under callgrind, 9 M a
+  // 720x480 frame, 5 % of build-dataset's).
+  std::vector<uint8_t> spread(3 * static_cast<size_t>(a.cols));
+  for (int y = 0; y < a.rows; ++y) {
+    const uint8_t* pa = a.ptr<uint8_t>(y);
+    const uint8_t* pb = b.ptr<uint8_t>(y);
+    const uint8_t* pm = mask.ptr<uint8_t>(y);
+    int row_n = 0;
+    for (int x = 0; x < a.cols; ++x) {
+      const uint8_t m = pm[x] != 0;
+      spread[3 * x] = spread[3 * x + 1] = spread[3 * x + 2] = m;
+      row_n += m;
+    }
+    const int bytes = 3 * a.cols;
+    // Frames are at most 16384 wide (BuildDatasetOptions::Check): a row sums
+    // to under 3 * 16384 * 255^2 < 2^32.
+    uint32_t row_se = 0;
+    for (int i = 0; i < bytes; ++i) {
+      const int d = (pa[i] - pb[i]) * spread[i];
+      row_se += static_cast<uint32_t>(d * d);
+    }
+    se += row_se;
+    n += 3 * row_n;
+  }
+  if (n == 0) return std::nullopt;
+  const double mse = static_cast<double>(se) / n;
+  return mse <= 0 ? 100.0 : 10.0 * std::log10(255.0 * 255.0 / mse);
+}
 
 ClipFrames ReadClipFrames(const DriveClip& clip,
                           const BuildDatasetOptions& opt,

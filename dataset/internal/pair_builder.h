@@ -69,6 +69,13 @@ struct ConditionRender {
 // the scene has no completion.
 cv::Mat CompletionPreview(const ConditionScene& scene);
 
+// PSNR (dB, data range 255) of RGB `a` against `b` over the pixels where
+// `mask` (CV_8UC1, same size) != 0; nullopt if none. Integer sums, exact (the
+// value summing in double gives). Frames at most 16384 wide.
+std::optional<double> MaskedPsnr(const cv::Mat& a,
+                                 const cv::Mat& b,
+                                 const cv::Mat& mask);
+
 // Reads the clip's images at the output size (dataset/frame_decode.h: a
 // DCT-scaled decode, then a resize), and the first `full_size_images` (-1 =
 // all) at full size too (ClipFrames::full); each is checked against the

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "dataset/drive_dataset.h"
+#include "dataset/internal/pair_builder.h"
 #include "dataset/pairs.h"
 #include "dataset/synthetic/synthetic_dataset.h"
 #include "geometry/monst3r.h"
@@ -77,6 +78,49 @@ const std::string& FullBuild() {
         std::printf("full build: %s\n", s.BriefReport().c_str());
       });
   return out;
+}
+
+// The static-region PSNR's sum against the per-pixel formula in double, on
+// random frames and masks (holes, runs, all and nothing), at widths that are
+// not multiples of a vector and at the widest frame allowed.
+TEST(BuildDataset, MaskedPsnrIsTheFormula) {
+  cv::RNG rng(11);
+  for (const cv::Size size : {cv::Size(720, 480), cv::Size(37, 5),
+                              cv::Size(1, 3), cv::Size(16384, 2)}) {
+    for (int kind = 0; kind < 4; ++kind) {
+      cv::Mat a(size, CV_8UC3), b(size, CV_8UC3), mask(size, CV_8UC1);
+      rng.fill(a, cv::RNG::UNIFORM, 0, 256);
+      rng.fill(b, cv::RNG::UNIFORM, 0, 256);
+      if (kind == 3) {  // the largest differences, 255^2 in every byte
+        a = cv::Scalar::all(0);
+        b = cv::Scalar::all(255);
+      }
+      rng.fill(mask, cv::RNG::UNIFORM, 0, 2);
+      if (kind == 1) mask = cv::Scalar(7);
+      if (kind == 2) mask = cv::Scalar(0);
+      double se = 0, n = 0;
+      for (int y = 0; y < size.height; ++y) {
+        for (int x = 0; x < size.width; ++x) {
+          if (mask.at<uint8_t>(y, x) == 0) continue;
+          for (int c = 0; c < 3; ++c) {
+            const double d =
+                a.at<cv::Vec3b>(y, x)[c] - b.at<cv::Vec3b>(y, x)[c];
+            se += d * d;
+            n += 1;
+          }
+        }
+      }
+      const std::optional<double> got = internal::MaskedPsnr(a, b, mask);
+      if (n == 0) {
+        EXPECT_FALSE(got.has_value()) << size << " " << kind;
+        continue;
+      }
+      ASSERT_TRUE(got.has_value()) << size << " " << kind;
+      // Integer sums, exact: the same double as the formula's.
+      EXPECT_EQ(*got, 10.0 * std::log10(255.0 * 255.0 / (se / n)))
+          << size << " " << kind;
+    }
+  }
 }
 
 TEST(BuildDataset, EveryMonst3rClipBecomesAPair) {
