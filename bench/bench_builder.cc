@@ -12,7 +12,8 @@
 //
 // --stages then times the parts on each folder (1600x900 JPEGs): the decode at
 // 1/1, 5/8 and 1/2, and cv::resize(INTER_AREA) against AreaResizeRgb, from the
-// full decode and from the 5/8 one (ms per frame, same clock).
+// full decode, from the 5/8 one and for a preview thumbnail of the 720x480
+// frame (ms per frame, same clock).
 
 #include <time.h>
 
@@ -30,6 +31,7 @@
 #include "dataset/frame_decode.h"
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
+#include "geometry/image_resize.h"
 #include "geometry/util/memory.h"
 
 namespace {
@@ -104,7 +106,7 @@ void PrintStages(const std::string& dir,
   using geodrive::JpegScale;
   const JpegScale scales[] = {{1, 1}, {5, 8}, {1, 2}};
   double decode[3] = {0, 0, 0}, cv_area = 0, area_full = 0, area_58 = 0,
-         cv_area_58 = 0;
+         cv_area_58 = 0, cv_thumb = 0, area_thumb = 0;
   const cv::Size out(720, 480);
   for (const std::string& f : files) {
     cv::Mat m[3];
@@ -123,14 +125,23 @@ void PrintStages(const std::string& dir,
     cv_area_58 += BestCpu(repeat, [&] {
       cv::resize(m[1], r, cv::Size(), 0.72, 480 / 562.5, cv::INTER_AREA);
     });
+    // A preview.png thumbnail of the 720x480 output (18 a pair).
+    const cv::Mat frame =
+        geodrive::AreaResizeRgb(m[0], m[0].cols, m[0].rows, out);
+    const cv::Size thumb(160, 107);
+    cv_thumb += BestCpu(
+        repeat, [&] { cv::resize(frame, r, thumb, 0, 0, cv::INTER_AREA); });
+    area_thumb += BestCpu(
+        repeat, [&] { r = geodrive::AreaResizeRgb(frame, 720, 480, thumb); });
   }
   const double k = 1e3 / std::max<size_t>(1, files.size());
   std::printf(
       "| %s | decode 1/1 %.2f, 5/8 %.2f, 1/2 %.2f | 1600x900 -> 720x480: "
       "cv::resize INTER_AREA %.2f, AreaResizeRgb %.2f | 1000x562.5 -> "
-      "720x480: cv::resize INTER_AREA %.2f, AreaResizeRgb %.2f |\n",
+      "720x480: cv::resize INTER_AREA %.2f, AreaResizeRgb %.2f | 720x480 -> "
+      "160x107: cv::resize INTER_AREA %.3f, AreaResizeRgb %.3f |\n",
       dir.c_str(), k * decode[0], k * decode[1], k * decode[2], k * cv_area,
-      k * area_full, k * cv_area_58, k * area_58);
+      k * area_full, k * cv_area_58, k * area_58, k * cv_thumb, k * area_thumb);
 }
 
 int Run(int argc, char** argv) {
@@ -226,7 +237,7 @@ int Run(int argc, char** argv) {
   if (stages) {
     std::printf(
         "\n| folder | decode, ms per frame | resize from 1/1, ms | resize from "
-        "5/8, ms |\n|---|---|---|---|\n");
+        "5/8, ms | thumbnail, ms |\n|---|---|---|---|---|\n");
     for (const std::string& dir : dirs)
       PrintStages(dir, ImagesUnder(dir, max_files), repeat);
   }
