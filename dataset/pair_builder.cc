@@ -19,6 +19,7 @@
 #include "geometry/image_io.h"
 #include "geometry/util/files.h"
 #include "geometry/util/hash.h"
+#include "geometry/util/simd.h"
 #include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
@@ -118,16 +119,9 @@ std::optional<double> StaticPsnr(const cv::Mat& cond,
 
 }  // namespace
 
-// MaskedPsnr gets an AVX2 clone picked at run time (GCC function
-// multiversioning); integer sums, so both clones give the same value.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && \
-    defined(__linux__)
-#define GEODRIVE_PSNR_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define GEODRIVE_PSNR_CLONES
-#endif
+// An AVX2 clone (geometry/util/simd.h): integer sums, the same value in both.
 
-GEODRIVE_PSNR_CLONES std::optional<double> MaskedPsnr(const cv::Mat& a,
+GEODRIVE_AVX2_CLONES std::optional<double> MaskedPsnr(const cv::Mat& a,
                                                       const cv::Mat& b,
                                                       const cv::Mat& mask) {
   int64_t se = 0;

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <type_traits>
 
+#include "geometry/util/simd.h"
 #include "geometry/util/status.h"
 
 // The PSNR sum of squares is compiled three times on x86-64 GCC (x86-64-v4 =
@@ -26,11 +27,6 @@
   __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define GEODRIVE_SIMD_CLONES
-#endif
-#if defined(__GNUC__)
-#define GEODRIVE_FORCE_INLINE inline __attribute__((always_inline))
-#else
-#define GEODRIVE_FORCE_INLINE inline
 #endif
 
 namespace geodrive {

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "geometry/util/simd.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -49,26 +50,12 @@ AreaAxis MakeAreaAxis(int source, int out, double scale) {
 }
 
 // The row kernels get an AVX2 clone picked at run time where the CPU has it
-// (GCC function multiversioning). No FMA and -ffp-contract=off (-std=c++17):
-// every lane runs the same multiplies and adds in the same order in both
-// clones, so the pixels do not depend on the CPU.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && \
-    defined(__linux__)
-#define GEODRIVE_ROW_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define GEODRIVE_ROW_CLONES
-#endif
-// Helpers are force-inlined into the clones (an `inline` one would be compiled
-// once, for the baseline target).
-#if defined(__GNUC__)
-#define GEODRIVE_FORCE_INLINE inline __attribute__((always_inline))
-#else
-#define GEODRIVE_FORCE_INLINE inline
-#endif
-
+// (GEODRIVE_AVX2_CLONES, geometry/util/simd.h). No FMA and -ffp-contract=off
+// (-std=c++17): every lane runs the same multiplies and adds in the same
+// order in both clones, so the pixels do not depend on the CPU.
 // out[i] = sum over k of w[k] * rows[k][i], i < n (rows with w[k] == 0
 // skipped; w[0] always taken).
-GEODRIVE_ROW_CLONES void VerticalRow(
+GEODRIVE_AVX2_CLONES void VerticalRow(
     const uint8_t* const* rows, const float* w, int taps, int n, float* out) {
   const uint8_t* s0 = rows[0];
   const float w0 = w[0];
@@ -176,9 +163,9 @@ GEODRIVE_FORCE_INLINE void HorizontalRows(const float* in,
 
 // One output row (3 floats a pixel, one float of padding after it) from the
 // vertically resampled row `in` (the same layout).
-GEODRIVE_ROW_CLONES void HorizontalRgb(const float* in,
-                                       const AreaAxis& ax,
-                                       float* out) {
+GEODRIVE_AVX2_CLONES void HorizontalRgb(const float* in,
+                                        const AreaAxis& ax,
+                                        float* out) {
   switch (ax.taps) {
     case 2:
       return HorizontalRows<2>(in, ax, out);
@@ -192,7 +179,7 @@ GEODRIVE_ROW_CLONES void HorizontalRgb(const float* in,
 }
 
 // Truncates (the 0.5 is in) and saturates a row to 8 bits.
-GEODRIVE_ROW_CLONES void RowToBytes(const float* in, int n, uint8_t* out) {
+GEODRIVE_AVX2_CLONES void RowToBytes(const float* in, int n, uint8_t* out) {
   for (int i = 0; i < n; ++i)
     out[i] = static_cast<uint8_t>(std::min(in[i], 255.f));
 }
