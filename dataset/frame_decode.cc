@@ -1,12 +1,8 @@
 #include "dataset/frame_decode.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <opencv2/imgproc.hpp>
-#include <utility>
-#include <vector>
 
 #include "geometry/util/status.h"
 

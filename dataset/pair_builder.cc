@@ -120,7 +120,6 @@ std::optional<double> StaticPsnr(const cv::Mat& cond,
 }  // namespace
 
 // An AVX2 clone (geometry/util/simd.h): integer sums, the same value in both.
-
 GEODRIVE_AVX2_CLONES std::optional<double> MaskedPsnr(const cv::Mat& a,
                                                       const cv::Mat& b,
                                                       const cv::Mat& mask) {

@@ -662,7 +662,6 @@ cv::Mat DecodePng(const std::string& path,
 
 // ---- Reading ----
 
-// Reads an image file; throws InputError naming it when unreadable.
 // Throws InputError naming `path` unless `bytes` start as a JPEG or a PNG.
 void CheckImageBytes(const std::string& path,
                      const std::vector<uint8_t>& bytes) {
@@ -673,6 +672,7 @@ void CheckImageBytes(const std::string& path,
   }
 }
 
+// Reads an image file; throws InputError naming it when unreadable.
 std::vector<uint8_t> ReadImageBytes(const std::string& path) {
   std::vector<uint8_t> bytes = ReadFileBytes(path, kMaxImageFileBytes);
   CheckImageBytes(path, bytes);
