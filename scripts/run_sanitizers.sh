@@ -44,6 +44,7 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-2}"
 # last and one core idles at the end. Only the order changes; a test not listed runs last.
 costs="$build"/Testing/Temporary/CTestCostData.txt
 [[ -f $costs ]] || { mkdir -p "$(dirname "$costs")" && cp tests/ctest_costs/asan.txt "$costs"; }
+df -Pm "$build" | awk 'NR == 2 { printf "disk: %.1f GB free under the sanitizer build (the tests need about 2 GB)\n", $4 / 1024 }'
 ctest --test-dir "$build" --output-on-failure -j "$(nproc)" --timeout 1500 -LE install -E 'HostileSizes'
 # The fuzz targets one per core (each its own process; the lines come out in target order).
 FUZZ_JOBS="${FUZZ_JOBS:-$(nproc)}" bash scripts/run_fuzz.sh "$build" "${FUZZ_SECONDS:-20}"

@@ -15,4 +15,7 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-2}"
 # last and one core idles at the end. Only the order changes; a test not listed runs last.
 costs=build/Testing/Temporary/CTestCostData.txt
 [[ -f $costs ]] || { mkdir -p "$(dirname "$costs")" && cp tests/ctest_costs/release.txt "$costs"; }
+# At their peak the tests hold about 2 GB under build/test_tmp (shared fixtures, and each
+# process's folders until its tests pass): say what is free, so a full disk reads as one.
+df -Pm build | awk 'NR == 2 { printf "disk: %.1f GB free under build/ (the tests need about 2 GB)\n", $4 / 1024 }'
 ctest --test-dir build --output-on-failure -j "$(nproc)" --timeout 900

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <string>
 
 #include "tests/common/test_util.h"
 
@@ -23,5 +24,11 @@ int main(int argc, char** argv) {
   FLAGS_minloglevel = 1;
   ::testing::InitGoogleTest(&argc, argv);
   ::testing::UnitTest::GetInstance()->listeners().Append(new SeedListener);
-  return RUN_ALL_TESTS();
+  const int rc = RUN_ALL_TESTS();
+  // Every test passed: its temporary folders go (a failure keeps them to look
+  // at). Shared fixtures (SharedFixtureDir) stay for the other test processes.
+  const char* keep = std::getenv("GEODRIVE_KEEP_TEST_TMP");
+  if (rc == 0 && !(keep && std::string(keep) == "1"))
+    geodrive::test::RemoveTempDirs();
+  return rc;
 }

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <vector>
 
 namespace geodrive {
 namespace test {
@@ -39,13 +40,31 @@ std::mt19937& Rng() {
   return rng;
 }
 
+namespace {
+std::vector<std::string>& TempDirs() {
+  static std::vector<std::string> dirs;
+  return dirs;
+}
+}  // namespace
+
 std::string MakeTempDir(const std::string& name) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::path(GEODRIVE_BINARY_DIR) / "test_tmp" /
                        (name + "-" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
+  TempDirs().push_back(dir.string());
   return dir.string();
+}
+
+int RemoveTempDirs() {
+  int removed = 0;
+  for (const std::string& dir : TempDirs()) {
+    std::error_code ec;
+    if (std::filesystem::remove_all(dir, ec) > 0 && !ec) ++removed;
+  }
+  TempDirs().clear();
+  return removed;
 }
 
 std::string SharedFixtureDir(

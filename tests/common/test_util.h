@@ -19,9 +19,15 @@ constexpr uint32_t kTestSeed = 20250528;
 std::mt19937& Rng();
 
 // A fresh empty temporary directory for this test process:
-// test_tmp/<name>-<pid> under the build tree (not removed at exit). Unique per
-// process, so `ctest -j` runs cannot collide.
+// test_tmp/<name>-<pid> under the build tree. Unique per process, so
+// `ctest -j` runs cannot collide. The shared main removes it at exit when
+// every test of the process passed (RemoveTempDirs) and keeps it for a
+// failure, or always with GEODRIVE_KEEP_TEST_TMP=1.
 std::string MakeTempDir(const std::string& name);
+// Removes every directory MakeTempDir made in this process (errors ignored:
+// a test may have removed its own) and returns their count. A whole test run
+// leaves ≈ 5 GB otherwise, which filled a small CI disk.
+int RemoveTempDirs();
 
 // A directory shared by every test process of this build
 // (test_tmp/shared/<name>): the first caller runs `build(dir)` under an
