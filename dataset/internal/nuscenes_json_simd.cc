@@ -487,7 +487,12 @@ SliceParser::~SliceParser() = default;
 bool SliceParser::Parse(const Slice& slice, RecordSink* sink) {
   od::parser& parser = impl_->parser;
   if (parser.capacity() < slice.size || parser.max_depth() != kMaxDepth) {
-    if (parser.allocate(slice.size, kMaxDepth)) return false;
+    // Room for any slice of the usual size at once: tables come small first
+    // (category.json is 3 KB), and sized to each larger slice the parser's
+    // buffers were allocated again, and their pages faulted in again, several
+    // times a load. Untouched capacity costs address space, not RSS.
+    const size_t usual = SliceBytes() + SliceBytes() / 8;
+    if (parser.allocate(std::max(slice.size, usual), kMaxDepth)) return false;
   }
   const char* json = slice.buffer.data() + slice.begin;
   od::document doc;
