@@ -589,15 +589,16 @@ void RunOnThreads(int threads, Body body) {
   for (auto& t : pool) t.join();
 }
 
-// Runs fn(i) for i in [0, n) on `num_threads` threads and rethrows the
-// exception of the smallest i that threw: the error a serial loop would have
-// stopped at. Rows after it may have run too.
+// Runs fn(i, after) for i in [0, n) on `num_threads` threads and rethrows
+// the exception of the smallest i that threw: the error a serial loop would
+// have stopped at. Rows after it may have run too. `after` is true when the
+// same thread ran fn(i - 1) just before (so row i - 1's results may be read).
 template <typename Fn>
 void ForEachRow(size_t n, int num_threads, Fn fn) {
   constexpr size_t kBlock = 4096;
   const int threads = LoaderThreads(num_threads);
   if (threads <= 1 || n < 2 * kBlock) {
-    for (size_t i = 0; i < n; ++i) fn(i);
+    for (size_t i = 0; i < n; ++i) fn(i, i > 0);
     return;
   }
   std::atomic<size_t> next_block{0};
@@ -611,7 +612,7 @@ void ForEachRow(size_t n, int num_threads, Fn fn) {
       const size_t end = std::min(n, begin + kBlock);
       for (size_t i = begin; i < end; ++i) {
         try {
-          fn(i);
+          fn(i, i > begin);
         } catch (...) {
           std::lock_guard<std::mutex> lock(mutex);
           if (i < first_error) {
@@ -624,6 +625,32 @@ void ForEachRow(size_t n, int num_threads, Fn fn) {
     }
   });
   if (error) std::rethrow_exception(error);
+}
+
+// The first of two passes over a table's prev/next references (`next` is
+// the last of `per_row` per row): stores each row's next (kNoIndex when empty
+// or unresolved: the second pass throws that error, in file order) and, as a
+// guess, the row's index in the prev of the row its next points to. The
+// second pass then finds a well-formed chain's prev with one comparison
+// instead of a hash probe, whatever the file order. `prefetch(i)` runs
+// before row i, `find(token)` is the hash lookup. Two rows naming the same
+// next both store (atomically; a guess is only ever compared).
+template <typename Row, typename Prefetch, typename Find>
+void ResolveNextAndGuessPrev(const std::vector<NuscenesToken>& refs,
+                             int per_row,
+                             int num_threads,
+                             std::vector<Row>* rows,
+                             Prefetch prefetch,
+                             Find find) {
+  ForEachRow(rows->size(), num_threads, [&](size_t i, bool) {
+    prefetch(i);
+    const int32_t j = find(refs[per_row * (i + 1) - 1]);
+    (*rows)[i].next = j;
+    if (j != kNoIndex) {
+      __atomic_store_n(&(*rows)[j].prev, static_cast<int32_t>(i),
+                       __ATOMIC_RELAXED);
+    }
+  });
 }
 
 // Runs Work of every task on `num_threads` threads, tables in order: the
@@ -1136,8 +1163,8 @@ void Nuscenes::Resolve(LoadState* state) {
   // Resolves a reference of `table`'s record `row` (whose token is `self`) to a
   // row of `target`.
   auto resolve = [&](int table, const NuscenesToken& self, const char* field,
-                     int target, const NuscenesToken& ref,
-                     bool required) -> int32_t {
+                     int target, const NuscenesToken& ref, bool required,
+                     int32_t near = kNoIndex) -> int32_t {
     if (state->missing[target]) return kNoIndex;  // optional table absent
     if (ref.empty()) {
       if (required) {
@@ -1146,7 +1173,7 @@ void Nuscenes::Resolve(LoadState* state) {
       }
       return kNoIndex;
     }
-    const int32_t i = FindRow(target, ref);
+    const int32_t i = FindRowNear(target, ref, near);
     if (i == kNoIndex) {
       ThrowInputError(state->paths[table], "record ", self.ToString(), ": ",
                       field, " ", ref.ToString(), " does not resolve in ",
@@ -1200,12 +1227,12 @@ void Nuscenes::Resolve(LoadState* state) {
   const int threads = options_.num_threads;
   {
     const auto& p = state->refs[kSample].tokens;
-    const int targets[] = {kScene, kSample, kSample};
-    ForEachRow(samples_.size(), threads, [&](size_t i) {
+    const int targets[] = {-1, kSample, kSample};
+    ForEachRow(samples_.size(), threads, [&](size_t i, bool after) {
       PrefetchRefs(p, targets, 3, i);
       auto& s = samples_[i];
-      s.scene =
-          resolve(kSample, s.token, "scene_token", kScene, p[3 * i], true);
+      s.scene = resolve(kSample, s.token, "scene_token", kScene, p[3 * i], true,
+                        after ? samples_[i - 1].scene : kNoIndex);
       s.prev = resolve(kSample, s.token, "prev", kSample, p[3 * i + 1], false);
       s.next = resolve(kSample, s.token, "next", kSample, p[3 * i + 2], false);
       s.data.assign(num_sensors, kNoIndex);
@@ -1213,22 +1240,32 @@ void Nuscenes::Resolve(LoadState* state) {
   }
   {
     auto& p = state->refs[kSampleData].tokens;
-    const int targets[] = {kSample, kEgoPose, kCalibratedSensor, kSampleData,
-                           kSampleData};
-    ForEachRow(sample_data_.size(), threads, [&](size_t i) {
+    // Only references found by hash are prefetched (-1: found by a guess).
+    const int next_only[] = {-1, -1, -1, -1, kSampleData};
+    ResolveNextAndGuessPrev(
+        p, 5, threads, &sample_data_,
+        [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
+        [&](const NuscenesToken& t) { return FindRow(kSampleData, t); });
+    const int targets[] = {kSample, -1, -1, -1, -1};
+    ForEachRow(sample_data_.size(), threads, [&](size_t i, bool after) {
       PrefetchRefs(p, targets, 5, i);
       auto& d = sample_data_[i];
+      const NuscenesSampleData* before = after ? &sample_data_[i - 1] : nullptr;
       d.sample = resolve(kSampleData, d.token, "sample_token", kSample,
-                         p[5 * i], true);
-      d.ego_pose = resolve(kSampleData, d.token, "ego_pose_token", kEgoPose,
-                           p[5 * i + 1], true);
-      d.calibrated_sensor =
-          resolve(kSampleData, d.token, "calibrated_sensor_token",
-                  kCalibratedSensor, p[5 * i + 2], true);
+                         p[5 * i], true, before ? before->sample : kNoIndex);
+      d.ego_pose =
+          resolve(kSampleData, d.token, "ego_pose_token", kEgoPose,
+                  p[5 * i + 1], true, before ? before->ego_pose : kNoIndex);
+      d.calibrated_sensor = resolve(
+          kSampleData, d.token, "calibrated_sensor_token", kCalibratedSensor,
+          p[5 * i + 2], true, before ? before->calibrated_sensor : kNoIndex);
+      // The first pass left the guess in prev: near + 1 is tried first.
       d.prev = resolve(kSampleData, d.token, "prev", kSampleData, p[5 * i + 3],
-                       false);
-      d.next = resolve(kSampleData, d.token, "next", kSampleData, p[5 * i + 4],
-                       false);
+                       false, d.prev - 1);
+      if (d.next == kNoIndex) {  // empty, or an error to throw in file order
+        d.next = resolve(kSampleData, d.token, "next", kSampleData,
+                         p[5 * i + 4], false);
+      }
       d.sensor = calibrated_sensors_[d.calibrated_sensor].sensor;
     });
     std::vector<NuscenesToken>().swap(p);
@@ -1240,21 +1277,31 @@ void Nuscenes::Resolve(LoadState* state) {
   }
   {
     auto& p = state->refs[kSampleAnnotation].tokens;
-    const int targets[] = {kSample, kInstance, kVisibility, kSampleAnnotation,
-                           kSampleAnnotation};
-    ForEachRow(sample_annotations_.size(), threads, [&](size_t i) {
+    const int next_only[] = {-1, -1, -1, -1, kSampleAnnotation};
+    ResolveNextAndGuessPrev(
+        p, 5, threads, &sample_annotations_,
+        [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
+        [&](const NuscenesToken& t) { return FindRow(kSampleAnnotation, t); });
+    const int targets[] = {kSample, -1, -1, -1, -1};
+    ForEachRow(sample_annotations_.size(), threads, [&](size_t i, bool after) {
       PrefetchRefs(p, targets, 5, i);
       auto& a = sample_annotations_[i];
+      const NuscenesSampleAnnotation* before =
+          after ? &sample_annotations_[i - 1] : nullptr;
       a.sample = resolve(kSampleAnnotation, a.token, "sample_token", kSample,
-                         p[5 * i], true);
-      a.instance = resolve(kSampleAnnotation, a.token, "instance_token",
-                           kInstance, p[5 * i + 1], true);
-      a.visibility = resolve(kSampleAnnotation, a.token, "visibility_token",
-                             kVisibility, p[5 * i + 2], false);
+                         p[5 * i], true, before ? before->sample : kNoIndex);
+      a.instance =
+          resolve(kSampleAnnotation, a.token, "instance_token", kInstance,
+                  p[5 * i + 1], true, before ? before->instance : kNoIndex);
+      a.visibility =
+          resolve(kSampleAnnotation, a.token, "visibility_token", kVisibility,
+                  p[5 * i + 2], false, before ? before->visibility : kNoIndex);
       a.prev = resolve(kSampleAnnotation, a.token, "prev", kSampleAnnotation,
-                       p[5 * i + 3], false);
-      a.next = resolve(kSampleAnnotation, a.token, "next", kSampleAnnotation,
-                       p[5 * i + 4], false);
+                       p[5 * i + 3], false, a.prev - 1);
+      if (a.next == kNoIndex) {  // empty, or an error to throw in file order
+        a.next = resolve(kSampleAnnotation, a.token, "next", kSampleAnnotation,
+                         p[5 * i + 4], false);
+      }
       for (const auto& t : state->ann_attributes[i]) {
         const int32_t at = resolve(kSampleAnnotation, a.token,
                                    "attribute_tokens", kAttribute, t, true);
@@ -1285,6 +1332,7 @@ void Nuscenes::PrefetchRefs(const std::vector<NuscenesToken>& refs,
   constexpr size_t kSlotAhead = 16, kRowAhead = 8;
   const size_t rows = refs.size() / per_row;
   for (int k = 0; k < per_row; ++k) {
+    if (targets[k] < 0) continue;
     const TokenIndex& index = index_[targets[k]];
     if (index.slots.empty()) continue;
     if (row + kSlotAhead < rows) {
@@ -1310,6 +1358,20 @@ int32_t Nuscenes::FindRow(int t, const NuscenesToken& token) const {
     h = (h + 1) & index.mask;
   }
   return kNoIndex;
+}
+
+int32_t Nuscenes::FindRowNear(int t,
+                              const NuscenesToken& token,
+                              int32_t near) const {
+  if (token.empty()) return kNoIndex;
+  const int64_t rows = static_cast<int64_t>(TableRowCount(t));
+  for (const int64_t guess : {int64_t{near} + 1, int64_t{near}}) {
+    if (guess >= 0 && guess < rows &&
+        RowToken(t, static_cast<int32_t>(guess)) == token) {
+      return static_cast<int32_t>(guess);
+    }
+  }
+  return FindRow(t, token);
 }
 
 int32_t Nuscenes::Find(const std::string& table,

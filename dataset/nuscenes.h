@@ -307,6 +307,12 @@ class Nuscenes {
   size_t TableRowCount(int table) const;
   const NuscenesToken& RowToken(int table, int32_t row) const;
   int32_t FindRow(int table, const NuscenesToken& token) const;
+  // FindRow, trying rows near + 1 and near first (a record that references
+  // the row after, or the same row as, the previous record's reference):
+  // the same answer, without a hash probe when the guess is right.
+  int32_t FindRowNear(int table,
+                      const NuscenesToken& token,
+                      int32_t near) const;
   void PrefetchRefs(const std::vector<NuscenesToken>& refs,
                     const int* targets,
                     int per_row,

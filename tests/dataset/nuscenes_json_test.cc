@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cinttypes>
 #include <cstdio>
 #include <filesystem>
@@ -544,13 +545,11 @@ TEST_F(FrontEnds, RecordsLongerThanTheBoundarySearchTail) {
 namespace geodrive {
 namespace {
 
-// Reference resolution and the token indices run on several threads above
-// 8,192 rows (blocks of 4,096): dangling references and duplicate tokens in a
-// big table still give the error a serial pass gives (the first row, the first
-// table).
-TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
-  const std::string base =
-      test::SharedFixtureDir("nuscenes_json_big", [](const std::string& dir) {
+// Tables with more than 8,192 sample_data rows (two scenes of 40 s, six
+// cameras, LiDAR and radars), shared by the tests of this build.
+std::string BigTables() {
+  return test::SharedFixtureDir(
+      "nuscenes_json_big", [](const std::string& dir) {
         SyntheticDatasetOptions o;
         o.num_scenes = 2;
         o.scene_duration_s = 40.0;
@@ -560,6 +559,14 @@ TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
                      "CAM_BACK",  "CAM_BACK_LEFT",  "CAM_BACK_RIGHT"};
         WriteSyntheticDataset(o, dir);
       });
+}
+
+// Reference resolution and the token indices run on several threads above
+// 8,192 rows (blocks of 4,096): dangling references and duplicate tokens in a
+// big table still give the error a serial pass gives (the first row, the first
+// table).
+TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
+  const std::string base = BigTables();
   namespace fs = std::filesystem;
   const std::string root = test::MakeTempDir("nuscenes_json_big_errors");
   fs::copy(base, root, fs::copy_options::recursive);
@@ -601,6 +608,95 @@ TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
   EXPECT_NE(reference.find("ego_pose.json"), std::string::npos) << reference;
   EXPECT_NE(reference.find("duplicate"), std::string::npos) << reference;
   for (int threads : {2, 3}) {
+    EXPECT_EQ(Fast(options, threads, size_t{1} << 20), reference) << threads;
+  }
+}
+
+// References are found by a guess before the hash (the row after or the same
+// as the previous record's reference; for prev, the row whose next named this
+// one): whatever the order of the rows, each reference resolves to the row
+// with that token, on one thread or several, and a table with several bad
+// references still reports the first in file order.
+TEST_F(FrontEnds, ReferencesResolveWhateverTheRowOrder) {
+  const std::string base = BigTables();
+  namespace fs = std::filesystem;
+  const std::string root = test::MakeTempDir("nuscenes_json_shuffled");
+  fs::copy(base, root, fs::copy_options::recursive);
+  const std::string dir = root + "/v1.0-mini/";
+  auto read = [&](const std::string& name) {
+    std::ifstream in(dir + name + ".json");
+    return json::parse(in);
+  };
+  auto write = [&](const std::string& name, const json& table) {
+    std::ofstream(dir + name + ".json", std::ios::trunc) << table.dump(0);
+  };
+  json sample_data = read("sample_data");
+  json annotations = read("sample_annotation");
+  ASSERT_GT(sample_data.size(), 3 * 4096u);
+  ASSERT_GT(annotations.size(), 100u);
+  // As written (chains in file order: every guess right) and shuffled (the
+  // row-order guesses wrong, the prev guess still right).
+  for (bool shuffle : {false, true}) {
+    if (shuffle) {
+      std::shuffle(sample_data.begin(), sample_data.end(), test::Rng());
+      std::shuffle(annotations.begin(), annotations.end(), test::Rng());
+      write("sample_data", sample_data);
+      write("sample_annotation", annotations);
+    }
+    for (int threads : {1, 2}) {
+      NuscenesOptions options;
+      options.dataroot = root;
+      options.num_threads = threads;
+      const Nuscenes n(options);
+      ASSERT_EQ(n.sample_data().size(), sample_data.size());
+      auto token_of = [](const auto& rows, int32_t i) {
+        return i == kNoIndex ? std::string() : rows[i].token.ToString();
+      };
+      for (size_t i = 0; i < sample_data.size(); ++i) {
+        const json& r = sample_data[i];
+        const NuscenesSampleData& d = n.sample_data()[i];
+        ASSERT_EQ(d.token.ToString(), r["token"].get<std::string>());
+        ASSERT_EQ(token_of(n.samples(), d.sample), r["sample_token"]) << i;
+        ASSERT_EQ(token_of(n.ego_poses(), d.ego_pose), r["ego_pose_token"])
+            << i;
+        ASSERT_EQ(token_of(n.calibrated_sensors(), d.calibrated_sensor),
+                  r["calibrated_sensor_token"])
+            << i;
+        ASSERT_EQ(token_of(n.sample_data(), d.prev), r["prev"]) << i;
+        ASSERT_EQ(token_of(n.sample_data(), d.next), r["next"]) << i;
+      }
+      for (size_t i = 0; i < annotations.size(); ++i) {
+        const json& r = annotations[i];
+        const NuscenesSampleAnnotation& a = n.sample_annotations()[i];
+        ASSERT_EQ(token_of(n.samples(), a.sample), r["sample_token"]) << i;
+        ASSERT_EQ(token_of(n.instances(), a.instance), r["instance_token"])
+            << i;
+        ASSERT_EQ(token_of(n.visibilities(), a.visibility),
+                  r["visibility_token"])
+            << i;
+        ASSERT_EQ(token_of(n.sample_annotations(), a.prev), r["prev"]) << i;
+        ASSERT_EQ(token_of(n.sample_annotations(), a.next), r["next"]) << i;
+      }
+    }
+  }
+  // A dangling next in an early row and a dangling prev in a later one: the
+  // next pass runs first but reports nothing; the error is the early row's.
+  json broken = sample_data;
+  size_t early = 100;
+  while (broken[early]["next"] == "") ++early;
+  size_t late = 9000;
+  while (broken[late]["prev"] == "") ++late;
+  broken[early]["next"] = "0123456789abcdef0123456789abcdef";
+  broken[late]["prev"] = "fedcba9876543210fedcba9876543210";
+  write("sample_data", broken);
+  NuscenesOptions options;
+  options.dataroot = root;
+  const std::string reference = Reference(options);
+  EXPECT_NE(reference.find(broken[early]["token"].get<std::string>() +
+                           ": next 0123456789abcdef0123456789abcdef"),
+            std::string::npos)
+      << reference;
+  for (int threads : {1, 2, 3}) {
     EXPECT_EQ(Fast(options, threads, size_t{1} << 20), reference) << threads;
   }
 }
