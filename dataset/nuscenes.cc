@@ -1157,30 +1157,40 @@ const NuscenesToken& Nuscenes::RowToken(int table, int32_t i) const {
   }
 }
 
+// A reference of `table`'s record whose token is `self` to a row of `target`
+// (a guess `near` tried first: FindRowNear); kNoIndex for an empty optional
+// one or a missing optional table. Throws naming the file otherwise.
+int32_t Nuscenes::ResolveRef(const LoadState& state,
+                             int table,
+                             const NuscenesToken& self,
+                             const char* field,
+                             int target,
+                             const NuscenesToken& ref,
+                             bool required,
+                             int32_t near) const {
+  if (state.missing[target]) return kNoIndex;  // optional table absent
+  if (ref.empty()) {
+    if (required) {
+      ThrowInputError(state.paths[table], "record ", self.ToString(), ": ",
+                      field, " is empty");
+    }
+    return kNoIndex;
+  }
+  const int32_t i = FindRowNear(target, ref, near);
+  if (i == kNoIndex) {
+    ThrowInputError(state.paths[table], "record ", self.ToString(), ": ", field,
+                    " ", ref.ToString(), " does not resolve in ",
+                    kTableNames[target], ".json");
+  }
+  return i;
+}
+
 void Nuscenes::Resolve(LoadState* state) {
   BuildTokenIndices(state);
 
   // Resolves a reference of `table`'s record `row` (whose token is `self`) to a
-  // row of `target`.
-  auto resolve = [&](int table, const NuscenesToken& self, const char* field,
-                     int target, const NuscenesToken& ref, bool required,
-                     int32_t near = kNoIndex) -> int32_t {
-    if (state->missing[target]) return kNoIndex;  // optional table absent
-    if (ref.empty()) {
-      if (required) {
-        ThrowInputError(state->paths[table], "record ", self.ToString(), ": ",
-                        field, " is empty");
-      }
-      return kNoIndex;
-    }
-    const int32_t i = FindRowNear(target, ref, near);
-    if (i == kNoIndex) {
-      ThrowInputError(state->paths[table], "record ", self.ToString(), ": ",
-                      field, " ", ref.ToString(), " does not resolve in ",
-                      kTableNames[target], ".json");
-    }
-    return i;
-  };
+  // row of `target`: ResolveRef.
+  auto resolve = [&](auto&&... args) { return ResolveRef(*state, args...); };
 
   {
     const auto& p = state->refs[kInstance].tokens;
@@ -1238,81 +1248,89 @@ void Nuscenes::Resolve(LoadState* state) {
       s.data.assign(num_sensors, kNoIndex);
     });
   }
-  {
-    auto& p = state->refs[kSampleData].tokens;
-    // Only references found by hash are prefetched (-1: found by a guess).
-    const int next_only[] = {-1, -1, -1, -1, kSampleData};
-    ResolveNextAndGuessPrev(
-        p, 5, threads, &sample_data_,
-        [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
-        [&](const NuscenesToken& t) { return FindRow(kSampleData, t); });
-    const int targets[] = {kSample, -1, -1, -1, -1};
-    ForEachRow(sample_data_.size(), threads, [&](size_t i, bool after) {
-      PrefetchRefs(p, targets, 5, i);
-      auto& d = sample_data_[i];
-      const NuscenesSampleData* before = after ? &sample_data_[i - 1] : nullptr;
-      d.sample = resolve(kSampleData, d.token, "sample_token", kSample,
-                         p[5 * i], true, before ? before->sample : kNoIndex);
-      d.ego_pose =
-          resolve(kSampleData, d.token, "ego_pose_token", kEgoPose,
-                  p[5 * i + 1], true, before ? before->ego_pose : kNoIndex);
-      d.calibrated_sensor = resolve(
-          kSampleData, d.token, "calibrated_sensor_token", kCalibratedSensor,
-          p[5 * i + 2], true, before ? before->calibrated_sensor : kNoIndex);
-      // The first pass left the guess in prev: near + 1 is tried first.
-      d.prev = resolve(kSampleData, d.token, "prev", kSampleData, p[5 * i + 3],
-                       false, d.prev - 1);
-      if (d.next == kNoIndex) {  // empty, or an error to throw in file order
-        d.next = resolve(kSampleData, d.token, "next", kSampleData,
-                         p[5 * i + 4], false);
-      }
-      d.sensor = calibrated_sensors_[d.calibrated_sensor].sensor;
-    });
-    std::vector<NuscenesToken>().swap(p);
-    for (size_t i = 0; i < sample_data_.size(); ++i) {
-      const auto& d = sample_data_[i];
-      if (d.is_key_frame)
-        samples_[d.sample].data[d.sensor] = static_cast<int32_t>(i);
+  ResolveSampleData(state, threads);
+  ResolveAnnotations(state, threads);
+}
+
+// sample_data's references, and each sample's key frames.
+void Nuscenes::ResolveSampleData(LoadState* state, int threads) {
+  auto resolve = [&](auto&&... args) { return ResolveRef(*state, args...); };
+  auto& p = state->refs[kSampleData].tokens;
+  // Only references found by hash are prefetched (-1: found by a guess).
+  const int next_only[] = {-1, -1, -1, -1, kSampleData};
+  ResolveNextAndGuessPrev(
+      p, 5, threads, &sample_data_,
+      [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
+      [&](const NuscenesToken& t) { return FindRow(kSampleData, t); });
+  const int targets[] = {kSample, -1, -1, -1, -1};
+  ForEachRow(sample_data_.size(), threads, [&](size_t i, bool after) {
+    PrefetchRefs(p, targets, 5, i);
+    auto& d = sample_data_[i];
+    const NuscenesSampleData* before = after ? &sample_data_[i - 1] : nullptr;
+    d.sample = resolve(kSampleData, d.token, "sample_token", kSample, p[5 * i],
+                       true, before ? before->sample : kNoIndex);
+    d.ego_pose =
+        resolve(kSampleData, d.token, "ego_pose_token", kEgoPose, p[5 * i + 1],
+                true, before ? before->ego_pose : kNoIndex);
+    d.calibrated_sensor = resolve(
+        kSampleData, d.token, "calibrated_sensor_token", kCalibratedSensor,
+        p[5 * i + 2], true, before ? before->calibrated_sensor : kNoIndex);
+    // The first pass left the guess in prev: near + 1 is tried first.
+    d.prev = resolve(kSampleData, d.token, "prev", kSampleData, p[5 * i + 3],
+                     false, d.prev - 1);
+    if (d.next == kNoIndex) {  // empty, or an error to throw in file order
+      d.next = resolve(kSampleData, d.token, "next", kSampleData, p[5 * i + 4],
+                       false);
     }
+    d.sensor = calibrated_sensors_[d.calibrated_sensor].sensor;
+  });
+  std::vector<NuscenesToken>().swap(p);
+  for (size_t i = 0; i < sample_data_.size(); ++i) {
+    const auto& d = sample_data_[i];
+    if (d.is_key_frame)
+      samples_[d.sample].data[d.sensor] = static_cast<int32_t>(i);
   }
-  {
-    auto& p = state->refs[kSampleAnnotation].tokens;
-    const int next_only[] = {-1, -1, -1, -1, kSampleAnnotation};
-    ResolveNextAndGuessPrev(
-        p, 5, threads, &sample_annotations_,
-        [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
-        [&](const NuscenesToken& t) { return FindRow(kSampleAnnotation, t); });
-    const int targets[] = {kSample, -1, -1, -1, -1};
-    ForEachRow(sample_annotations_.size(), threads, [&](size_t i, bool after) {
-      PrefetchRefs(p, targets, 5, i);
-      auto& a = sample_annotations_[i];
-      const NuscenesSampleAnnotation* before =
-          after ? &sample_annotations_[i - 1] : nullptr;
-      a.sample = resolve(kSampleAnnotation, a.token, "sample_token", kSample,
-                         p[5 * i], true, before ? before->sample : kNoIndex);
-      a.instance =
-          resolve(kSampleAnnotation, a.token, "instance_token", kInstance,
-                  p[5 * i + 1], true, before ? before->instance : kNoIndex);
-      a.visibility =
-          resolve(kSampleAnnotation, a.token, "visibility_token", kVisibility,
-                  p[5 * i + 2], false, before ? before->visibility : kNoIndex);
-      a.prev = resolve(kSampleAnnotation, a.token, "prev", kSampleAnnotation,
-                       p[5 * i + 3], false, a.prev - 1);
-      if (a.next == kNoIndex) {  // empty, or an error to throw in file order
-        a.next = resolve(kSampleAnnotation, a.token, "next", kSampleAnnotation,
-                         p[5 * i + 4], false);
-      }
-      for (const auto& t : state->ann_attributes[i]) {
-        const int32_t at = resolve(kSampleAnnotation, a.token,
-                                   "attribute_tokens", kAttribute, t, true);
-        if (at != kNoIndex) a.attributes.push_back(at);
-      }
-      a.category = instances_[a.instance].category;
-    });
-    for (size_t i = 0; i < sample_annotations_.size(); ++i) {
-      samples_[sample_annotations_[i].sample].anns.push_back(
-          static_cast<int32_t>(i));
+}
+
+// sample_annotation's references, and each sample's annotations.
+void Nuscenes::ResolveAnnotations(LoadState* state, int threads) {
+  auto resolve = [&](auto&&... args) { return ResolveRef(*state, args...); };
+  auto& p = state->refs[kSampleAnnotation].tokens;
+  const int next_only[] = {-1, -1, -1, -1, kSampleAnnotation};
+  ResolveNextAndGuessPrev(
+      p, 5, threads, &sample_annotations_,
+      [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
+      [&](const NuscenesToken& t) { return FindRow(kSampleAnnotation, t); });
+  const int targets[] = {kSample, -1, -1, -1, -1};
+  ForEachRow(sample_annotations_.size(), threads, [&](size_t i, bool after) {
+    PrefetchRefs(p, targets, 5, i);
+    auto& a = sample_annotations_[i];
+    const NuscenesSampleAnnotation* before =
+        after ? &sample_annotations_[i - 1] : nullptr;
+    a.sample = resolve(kSampleAnnotation, a.token, "sample_token", kSample,
+                       p[5 * i], true, before ? before->sample : kNoIndex);
+    a.instance =
+        resolve(kSampleAnnotation, a.token, "instance_token", kInstance,
+                p[5 * i + 1], true, before ? before->instance : kNoIndex);
+    a.visibility =
+        resolve(kSampleAnnotation, a.token, "visibility_token", kVisibility,
+                p[5 * i + 2], false, before ? before->visibility : kNoIndex);
+    a.prev = resolve(kSampleAnnotation, a.token, "prev", kSampleAnnotation,
+                     p[5 * i + 3], false, a.prev - 1);
+    if (a.next == kNoIndex) {  // empty, or an error to throw in file order
+      a.next = resolve(kSampleAnnotation, a.token, "next", kSampleAnnotation,
+                       p[5 * i + 4], false);
     }
+    for (const auto& t : state->ann_attributes[i]) {
+      const int32_t at = resolve(kSampleAnnotation, a.token, "attribute_tokens",
+                                 kAttribute, t, true);
+      if (at != kNoIndex) a.attributes.push_back(at);
+    }
+    a.category = instances_[a.instance].category;
+  });
+  for (size_t i = 0; i < sample_annotations_.size(); ++i) {
+    samples_[sample_annotations_[i].sample].anns.push_back(
+        static_cast<int32_t>(i));
   }
 }
 

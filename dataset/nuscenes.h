@@ -318,6 +318,16 @@ class Nuscenes {
                     int per_row,
                     size_t row) const;
   void Resolve(LoadState* state);
+  int32_t ResolveRef(const LoadState& state,
+                     int table,
+                     const NuscenesToken& self,
+                     const char* field,
+                     int target,
+                     const NuscenesToken& ref,
+                     bool required,
+                     int32_t near = kNoIndex) const;
+  void ResolveSampleData(LoadState* state, int threads);
+  void ResolveAnnotations(LoadState* state, int threads);
   void BuildChains();
 
   NuscenesOptions options_;
