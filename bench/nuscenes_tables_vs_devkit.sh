@@ -14,6 +14,9 @@
 # REPS (ours: repetitions, best wall taken; devkit: best of REPS loads at
 # mini size, one load at trainval size -- it needs ~10 GB; default 3).
 # Each size runs in its own processes so the peak RSS is that size's.
+# bench_nuscenes applies the allocator policy of the geodrive binary
+# (geometry/util/memory.h); GEODRIVE_MALLOC_DEFAULTS=1 runs it with glibc's
+# defaults. REPS=1 measures each side's first load in a fresh process.
 # ROUNDS (default 1): run ours and the devkit that many times, alternating,
 # each in fresh processes, and add a line with the median over the rounds of
 # each side's best. On a shared VM a fresh python3 process's best-of-10 load of
