@@ -561,22 +561,35 @@ std::string BigTables() {
       });
 }
 
+// A private copy of BigTables() in a temporary folder, its tables read and
+// written back as JSON.
+struct BigTablesCopy {
+  explicit BigTablesCopy(const std::string& name)
+      : root(test::MakeTempDir(name)) {
+    std::filesystem::copy(BigTables(), root,
+                          std::filesystem::copy_options::recursive);
+  }
+  json Read(const std::string& table) const {
+    std::ifstream in(root + "/v1.0-mini/" + table + ".json");
+    return json::parse(in);
+  }
+  void Write(const std::string& table, const json& rows) const {
+    std::ofstream(root + "/v1.0-mini/" + table + ".json", std::ios::trunc)
+        << rows.dump(0);
+  }
+  const std::string root;
+};
+
 // Reference resolution and the token indices run on several threads above
 // 8,192 rows (blocks of 4,096): dangling references and duplicate tokens in a
 // big table still give the error a serial pass gives (the first row, the first
 // table).
 TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
-  const std::string base = BigTables();
-  namespace fs = std::filesystem;
-  const std::string root = test::MakeTempDir("nuscenes_json_big_errors");
-  fs::copy(base, root, fs::copy_options::recursive);
-  const std::string dir = root + "/v1.0-mini/";
-  auto read = [&](const std::string& name) {
-    std::ifstream in(dir + name + ".json");
-    return json::parse(in);
-  };
+  BigTablesCopy copy("nuscenes_json_big_errors");
+  const std::string& root = copy.root;
+  auto read = [&](const std::string& name) { return copy.Read(name); };
   auto write = [&](const std::string& name, const json& table) {
-    std::ofstream(dir + name + ".json") << table.dump(0);
+    copy.Write(name, table);
   };
   const json sample_data = read("sample_data"), ego_pose = read("ego_pose");
   ASSERT_GT(sample_data.size(), 3 * 4096u);  // four blocks of rows
@@ -618,17 +631,11 @@ TEST_F(FrontEnds, ResolutionErrorsOfBigTablesDoNotDependOnThreads) {
 // with that token, on one thread or several, and a table with several bad
 // references still reports the first in file order.
 TEST_F(FrontEnds, ReferencesResolveWhateverTheRowOrder) {
-  const std::string base = BigTables();
-  namespace fs = std::filesystem;
-  const std::string root = test::MakeTempDir("nuscenes_json_shuffled");
-  fs::copy(base, root, fs::copy_options::recursive);
-  const std::string dir = root + "/v1.0-mini/";
-  auto read = [&](const std::string& name) {
-    std::ifstream in(dir + name + ".json");
-    return json::parse(in);
-  };
+  BigTablesCopy copy("nuscenes_json_shuffled");
+  const std::string& root = copy.root;
+  auto read = [&](const std::string& name) { return copy.Read(name); };
   auto write = [&](const std::string& name, const json& table) {
-    std::ofstream(dir + name + ".json", std::ios::trunc) << table.dump(0);
+    copy.Write(name, table);
   };
   json sample_data = read("sample_data");
   json annotations = read("sample_annotation");
