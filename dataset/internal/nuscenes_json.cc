@@ -67,7 +67,7 @@ const JsonField* JsonRecord::FindAndRemember(const char* key) const {
 
 namespace {
 std::atomic<bool> g_fast_enabled{true};
-std::atomic<size_t> g_slice_bytes{size_t{1} << 20};
+std::atomic<size_t> g_slice_bytes{kDefaultSliceBytes};
 std::atomic<size_t> g_fallbacks{0};
 }  // namespace
 

@@ -11,9 +11,10 @@
 // a mapping count in RSS too, and the index is the same). simdjson 3.0's
 // document streams (iterate_many) take concatenated documents, not the
 // elements of one big array (comma-separated streams came in 3.1). So the
-// table is cut into slices of about 1 MiB: TableSlicer finds the last
-// boundary between two records ("}" , "{" with only whitespace around the
-// comma) in the next ~1 MiB of the file and hands out "[" + those records +
+// table is cut into slices of about 256 KiB (kDefaultSliceBytes): TableSlicer
+// finds the last boundary between two records ("}" , "{" with only whitespace
+// around the comma) in the next 256 KiB of the file and hands out "[" + those
+// records +
 // "]"; the next slice starts at the "{" after the boundary. Only the search
 // is serial (under the slicer's lock, in a pread of the window's last 4 KiB);
 // each thread reads its slice's bytes itself, outside the lock. Memory is one

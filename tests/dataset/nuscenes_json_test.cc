@@ -35,7 +35,7 @@ class FrontEnds : public ::testing::Test {
  protected:
   void TearDown() override {
     nj::SetFastFrontEndEnabled(true);
-    nj::SetSliceBytes(size_t{1} << 20);
+    nj::SetSliceBytes(nj::kDefaultSliceBytes);
   }
 };
 
@@ -233,7 +233,8 @@ TEST_F(FrontEnds, SyntheticTablesAreIdenticalAndNeverFallBack) {
   // Default slices (each table is one or two), then 300-byte slices (every
   // boundary; records longer than a slice double the read), on 1-4 threads.
   for (int threads : {1, 2, 4}) {
-    for (size_t slice : {size_t{1} << 20, size_t{300}, size_t{4096}}) {
+    for (size_t slice :
+         {nj::kDefaultSliceBytes, size_t{1} << 20, size_t{300}, size_t{4096}}) {
       EXPECT_EQ(Fast(options, threads, slice), reference)
           << threads << " threads, slices of " << slice;
     }
