@@ -631,32 +631,6 @@ void ForEachRow(size_t n, int num_threads, Fn fn) {
   if (error) std::rethrow_exception(error);
 }
 
-// The first of two passes over a table's prev/next references (`next` is
-// the last of `per_row` per row): stores each row's next (kNoIndex when empty
-// or unresolved: the second pass throws that error, in file order) and, as a
-// guess, the row's index in the prev of the row its next points to. The
-// second pass then finds a well-formed chain's prev with one comparison
-// instead of a hash probe, whatever the file order. `prefetch(i)` runs
-// before row i, `find(token)` is the hash lookup. Two rows naming the same
-// next both store (atomically; a guess is only ever compared).
-template <typename Row, typename Prefetch, typename Find>
-void ResolveNextAndGuessPrev(const std::vector<NuscenesToken>& refs,
-                             int per_row,
-                             int num_threads,
-                             std::vector<Row>* rows,
-                             Prefetch prefetch,
-                             Find find) {
-  ForEachRow(rows->size(), num_threads, [&](size_t i, bool) {
-    prefetch(i);
-    const int32_t j = find(refs[per_row * (i + 1) - 1]);
-    (*rows)[i].next = j;
-    if (j != kNoIndex) {
-      __atomic_store_n(&(*rows)[j].prev, static_cast<int32_t>(i),
-                       __ATOMIC_RELAXED);
-    }
-  });
-}
-
 // Runs Work of every task on `num_threads` threads, tables in order: the
 // threads share a table's slices, then move on.
 void RunTableTasks(const std::vector<std::unique_ptr<TableTask>>& tasks,
@@ -1256,16 +1230,36 @@ void Nuscenes::Resolve(LoadState* state) {
   ResolveAnnotations(state, threads);
 }
 
+// The first of two passes over `table`'s prev/next references (five per
+// row, next the last): stores each row's next (kNoIndex when empty or
+// unresolved: the second pass throws that error, in file order) and, as a
+// guess, the row's index in the prev of the row its next points to. The
+// second pass then finds a well-formed chain's prev with one comparison
+// instead of a hash probe, whatever the file order. Two rows naming the same
+// next both store (atomically; a guess is only ever compared).
+template <typename Row>
+void Nuscenes::ResolveNextAndGuessPrev(int table,
+                                       const std::vector<NuscenesToken>& refs,
+                                       int threads,
+                                       std::vector<Row>* rows) const {
+  const int next_only[] = {-1, -1, -1, -1, table};  // prefetched: next only
+  ForEachRow(rows->size(), threads, [&](size_t i, bool) {
+    PrefetchRefs(refs, next_only, 5, i);
+    const int32_t j = FindRow(table, refs[5 * i + 4]);
+    (*rows)[i].next = j;
+    if (j != kNoIndex) {
+      __atomic_store_n(&(*rows)[j].prev, static_cast<int32_t>(i),
+                       __ATOMIC_RELAXED);
+    }
+  });
+}
+
 // sample_data's references, and each sample's key frames.
 void Nuscenes::ResolveSampleData(LoadState* state, int threads) {
   auto resolve = [&](auto&&... args) { return ResolveRef(*state, args...); };
   auto& p = state->refs[kSampleData].tokens;
+  ResolveNextAndGuessPrev(kSampleData, p, threads, &sample_data_);
   // Only references found by hash are prefetched (-1: found by a guess).
-  const int next_only[] = {-1, -1, -1, -1, kSampleData};
-  ResolveNextAndGuessPrev(
-      p, 5, threads, &sample_data_,
-      [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
-      [&](const NuscenesToken& t) { return FindRow(kSampleData, t); });
   const int targets[] = {kSample, -1, -1, -1, -1};
   ForEachRow(sample_data_.size(), threads, [&](size_t i, bool after) {
     PrefetchRefs(p, targets, 5, i);
@@ -1300,11 +1294,7 @@ void Nuscenes::ResolveSampleData(LoadState* state, int threads) {
 void Nuscenes::ResolveAnnotations(LoadState* state, int threads) {
   auto resolve = [&](auto&&... args) { return ResolveRef(*state, args...); };
   auto& p = state->refs[kSampleAnnotation].tokens;
-  const int next_only[] = {-1, -1, -1, -1, kSampleAnnotation};
-  ResolveNextAndGuessPrev(
-      p, 5, threads, &sample_annotations_,
-      [&](size_t i) { PrefetchRefs(p, next_only, 5, i); },
-      [&](const NuscenesToken& t) { return FindRow(kSampleAnnotation, t); });
+  ResolveNextAndGuessPrev(kSampleAnnotation, p, threads, &sample_annotations_);
   const int targets[] = {kSample, -1, -1, -1, -1};
   ForEachRow(sample_annotations_.size(), threads, [&](size_t i, bool after) {
     PrefetchRefs(p, targets, 5, i);

@@ -326,6 +326,11 @@ class Nuscenes {
                      const NuscenesToken& ref,
                      bool required,
                      int32_t near = kNoIndex) const;
+  template <typename Row>
+  void ResolveNextAndGuessPrev(int table,
+                               const std::vector<NuscenesToken>& refs,
+                               int threads,
+                               std::vector<Row>* rows) const;
   void ResolveSampleData(LoadState* state, int threads);
   void ResolveAnnotations(LoadState* state, int threads);
   void BuildChains();
