@@ -12,11 +12,15 @@
 // Figures and targets: docs/PERFORMANCE.md, section "Renderer".
 
 #include <benchmark/benchmark.h>
+#include <omp.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "bench/bench_main.h"
 #include "render/renderer.h"
@@ -112,6 +116,63 @@ BENCHMARK(BM_Render25Frames)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime()  // CPU time of all threads
+    ->MinTime(2.0);
+
+// The bytes the radius-0 z-buffer path cannot avoid moving, and nothing else:
+// per frame, the cloud's positions read once (x, y, z arrays, 12 B a point),
+// a 64-bit key per pixel read and written once, and the frame's outputs (RGB
+// 3 B + depth 4 B + mask 1 B a pixel) written once with memset (glibc's
+// fastest store path). No projection, no depth test, no colour lookup: a
+// lower bound for any renderer that writes these outputs, on this machine, in
+// the same run as BM_Render25Frames (bench/render_vs_open3d.sh prints it).
+// Args: threads (frames split over OpenMP threads as the renderer does).
+void BM_TrafficFloor25Frames(benchmark::State& state) {
+  const Scene& scene = GetScene();
+  const size_t n = scene.cloud.size(), npix = 720 * 480;
+  const int frames = static_cast<int>(scene.cam_from_world.size());
+  std::vector<uint32_t> x(n), y(n), z(n);
+  for (size_t i = 0; i < n; ++i) {
+    std::memcpy(&x[i], &scene.cloud.positions[i][0], 4);
+    std::memcpy(&y[i], &scene.cloud.positions[i][1], 4);
+    std::memcpy(&z[i], &scene.cloud.positions[i][2], 4);
+  }
+  const int threads = static_cast<int>(state.range(0));
+  std::vector<std::vector<uint64_t>> keys(threads,
+                                          std::vector<uint64_t>(npix, ~0ull));
+  std::vector<std::vector<uint8_t>> rgb(frames, std::vector<uint8_t>(3 * npix));
+  std::vector<std::vector<uint8_t>> depth(frames,
+                                          std::vector<uint8_t>(4 * npix));
+  std::vector<std::vector<uint8_t>> mask(frames, std::vector<uint8_t>(npix));
+  uint64_t sink = 0;
+  for (auto _ : state) {
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1) \
+    reduction(^ : sink)
+    for (int f = 0; f < frames; ++f) {
+      uint32_t acc = static_cast<uint32_t>(f);
+      for (size_t i = 0; i < n; ++i) acc ^= x[i] ^ y[i] ^ z[i];
+      uint64_t* k = keys[omp_get_thread_num()].data();
+      uint64_t kacc = 0;
+      for (size_t i = 0; i < npix; ++i) {
+        kacc ^= k[i];
+        k[i] = ~uint64_t{0} - static_cast<uint64_t>(f);
+      }
+      std::memset(rgb[f].data(), f, rgb[f].size());
+      std::memset(depth[f].data(), f, depth[f].size());
+      std::memset(mask[f].data(), f, mask[f].size());
+      sink ^= acc ^ kacc;
+    }
+    benchmark::DoNotOptimize(sink);
+    benchmark::ClobberMemory();
+  }
+  state.SetLabel("bytes only: points read, keys read+written, outputs written");
+}
+BENCHMARK(BM_TrafficFloor25Frames)
+    ->ArgNames({"threads"})
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
     ->MinTime(2.0);
 
 }  // namespace

@@ -8,7 +8,10 @@
 # 100), with 1 and with 2 OpenMP threads, and the ratios Open3D / ours at the
 # same thread count are printed. Both sides keep the cloud in memory between
 # repetitions and time only the 25 projections; Open3D also allocates its
-# output images per call, ours reuses them (RenderFramesInto).
+# output images per call, ours reuses them (RenderFramesInto). The same run
+# also times BM_TrafficFloor25Frames (the bytes alone: the cloud read, the
+# key buffer read and written, the outputs written, once a frame) and prints
+# the time a renderer would need for 20x Open3D at each thread count.
 #
 #   bash bench/render_vs_open3d.sh [BUILD_DIR]     (default: build)
 #
@@ -47,7 +50,7 @@ lscpu | grep -E "^Model name|^CPU\(s\)" || true
 echo "flags: $(grep -o -w -E 'avx2|avx512f|avx512bw|avx512vl' /proc/cpuinfo | sort -u | tr '\n' ' ')"
 echo "load: $(cut -d' ' -f1-3 /proc/loadavg)${GLIBC_TUNABLES:+; AVX2 only: $GLIBC_TUNABLES}"
 
-filter="mode:($(echo "$MODES" | tr ' ' '|'))/"
+filter="mode:($(echo "$MODES" | tr ' ' '|'))/|TrafficFloor"
 echo "== ours ($BENCH, median of $REPS; wall and CPU time of the process)"
 $TASKSET "$BENCH" --benchmark_filter="$filter" --benchmark_min_time=1 \
   --benchmark_repetitions="$REPS" --benchmark_report_aggregates_only=true \
@@ -66,7 +69,12 @@ ours = {}
 for b in json.load(open(os.path.join(d, 'ours.json')))['benchmarks']:
     if b.get('aggregate_name') == 'median':
         # run_name: BM_Render25Frames/mode:M/threads:T/min_time:.../...
-        m, t = b['run_name'].split('/')[1:3]
+        # or BM_TrafficFloor25Frames/threads:T/...
+        parts = b['run_name'].split('/')
+        if parts[0] == 'BM_TrafficFloor25Frames':
+            ours[f'floor/{parts[1]}'] = b['real_time']
+            continue
+        m, t = parts[1:3]
         ours[f'{m}/{t}'] = (b['real_time'], b['cpu_time'], b.get('mean_coverage', 0))
 
 lines = open(os.path.join(d, 'cameras.txt')).read().split('\n')
@@ -96,11 +104,13 @@ key = f'mode:0/threads:{threads}'
 if threads == 1:
     print(f'open3d {o3d.__version__}, {len(pts)} points, {len(exts)} frames {w}x{h}')
     print(f'{"threads":<8}{"ours ms (cpu)":>18}{"open3d ms (cpu)":>20}{"open3d/ours":>13}'
-          f'{"coverage ours":>15}{"open3d":>8}')
+          f'{"coverage ours":>15}{"open3d":>8}{"bytes-only ms":>15}{"20x needs ms":>14}')
+floor = ours.get(f'floor/threads:{threads}')
+floor_text = f'{floor:>15.1f}' if floor else f'{"-":>15}'
 if key in ours:
     ow, oc, ocov = ours[key]
     print(f'{threads:<8}{ow:>10.1f} ({oc:5.1f}){wall:>12.1f} ({cpu:5.0f}){wall / ow:>12.1f}x'
-          f'{ocov:>15.3f}{coverage:>8.3f}')
+          f'{ocov:>15.3f}{coverage:>8.3f}{floor_text}{wall / 20:>14.1f}')
 else:
     print(f'{threads:<8}{"-":>18}{wall:>12.1f} ({cpu:5.0f})')
 EOF
