@@ -10,13 +10,13 @@
 // declared size is checked against the bytes that follow the header before
 // anything is allocated, binary values are copied with memcpy per property
 // (in blocks of points, field by field), ASCII values are parsed with
-// std::from_chars, and LZF (PCD binary_compressed) comes from Debian's liblzf.
+// std::from_chars, and LZF (PCD binary_compressed) is decoded in pieces by
+// internal/lzf_stream.h (why not liblzf: there).
 // Policies (limits, NaN, attribute names): point_cloud_io.h.
 
 #include "geometry/point_cloud_io.h"
 
 #include <fcntl.h>
-#include <lzf.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -32,6 +32,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "geometry/internal/lzf_stream.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
@@ -1437,6 +1438,80 @@ PcdHeader ParsePcdHeader(const std::string& path, const FileBuffer& file) {
   return header;
 }
 
+// The LZF sink of a binary_compressed block (PCL's layout: the fields one
+// after another, all of field 0's values, then field 1's, ...): each piece
+// of the stream is converted into the cloud's columns as it comes, whole
+// values only, so no decompressed copy of the points is ever held.
+class CompressedColumnsSink {
+ public:
+  CompressedColumnsSink(const std::string& path,
+                        const PcdHeader& header,
+                        const CloudColumns& out)
+      : path_(path), out_(out), n_(header.points()) {
+    uint64_t begin = 0;
+    for (const FieldSpec& f : header.fields) {
+      fields_.push_back(
+          Field{begin, f.Bytes(), f.target, ColumnFunctionFor<false>(f.type)});
+      begin += n_ * f.Bytes();
+    }
+  }
+
+  // Converts the whole values in [offset, offset + n) of the stream; returns
+  // the bytes used (a value cut by the piece's end waits for the next one).
+  size_t Consume(uint64_t offset, const uint8_t* data, size_t n) {
+    const uint64_t end = offset + n;
+    uint64_t used = offset;
+    for (const Field& f : fields_) {
+      const uint64_t field_end = f.begin + n_ * f.bytes;
+      if (field_end <= offset || f.begin >= end) continue;
+      const uint64_t a = std::max(offset, f.begin);  // a value's start
+      const uint64_t first = (a - f.begin) / f.bytes;
+      const uint64_t last = (std::min(end, field_end) - f.begin) / f.bytes;
+      if (f.target != Target::kSkip && last > first) {
+        f.convert(path_, reinterpret_cast<const char*>(data + (a - offset)),
+                  f.bytes, static_cast<size_t>(first),
+                  static_cast<size_t>(last - first), f.target, out_);
+      }
+      used = f.begin + last * f.bytes;
+    }
+    return static_cast<size_t>(used - offset);
+  }
+
+ private:
+  struct Field {
+    uint64_t begin;  // stream offset of the field's first value
+    size_t bytes;    // bytes a point
+    Target target;
+    ColumnFn convert;
+  };
+  const std::string& path_;
+  const CloudColumns& out_;
+  const uint64_t n_;
+  std::vector<Field> fields_;
+};
+
+void DecodeCompressedPoints(const std::string& path,
+                            const PcdHeader& header,
+                            const char* compressed,
+                            uint32_t compressed_size,
+                            const CloudColumns& out) {
+  // 256 KiB pieces: the decoder's buffer stays in a core's L2 cache.
+  constexpr size_t kPieceBytes = size_t{256} << 10;
+  const uint64_t uncompressed = header.points() * header.PointBytes();
+  CompressedColumnsSink sink(path, header, out);
+  uint64_t produced = 0;
+  const lzf_stream::LzfResult result = lzf_stream::DecodeLzf(
+      reinterpret_cast<const uint8_t*>(compressed), compressed_size,
+      uncompressed, kPieceBytes, sink, &produced);
+  if (result != lzf_stream::LzfResult::kOk) {
+    // Bytes decoded before the failure (short: all the stream gave).
+    ThrowInputError(
+        path, "corrupt LZF data (",
+        result == lzf_stream::LzfResult::kShort ? "short" : "invalid",
+        " stream: ", produced, " of ", uncompressed, " bytes)");
+  }
+}
+
 PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
   const FileBuffer file = ReadWholeFile(path);
   const PcdHeader header = ParsePcdHeader(path, file);
@@ -1445,7 +1520,8 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
   const char* data = file.begin() + header.data_offset;
   const uint64_t left = file.size - header.data_offset;
   PointCloud cloud;
-  std::unique_ptr<char[]> decompressed;
+  const char* compressed_data = nullptr;  // binary_compressed: the LZF stream
+  uint32_t compressed_size = 0;
 
   // Sizes first, allocation after.
   if (header.data == PcdData::kAscii) {
@@ -1490,19 +1566,8 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
                       " bytes of LZF data cannot hold ", uncompressed,
                       " bytes");
     }
-    try {
-      decompressed.reset(new char[uncompressed]);
-    } catch (const std::bad_alloc&) {
-      ThrowInputError(path, "cannot allocate ", uncompressed,
-                      " bytes for the decompressed points");
-    }
-    const unsigned int got =
-        lzf_decompress(data + 8, compressed, decompressed.get(), uncompressed);
-    if (got != uncompressed) {
-      ThrowInputError(path, "corrupt LZF data (",
-                      got == 0 ? "invalid" : "short", " stream: ", got, " of ",
-                      uncompressed, " bytes)");
-    }
+    compressed_data = data + 8;
+    compressed_size = compressed;
   }
 
   const CloudColumns out = AllocateCloud(n, header.fields, &cloud);
@@ -1521,22 +1586,19 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
                       ": unexpected data after the last point ('",
                       Excerpt(line.b, line.e), "')");
     }
-  } else if (n > 0) {
+  } else if (header.data == PcdData::kBinary && n > 0) {
     std::vector<Column> columns;
     size_t offset = 0;
     for (const FieldSpec& f : header.fields) {
       if (f.target != Target::kSkip) {
-        // binary: point-major records; binary_compressed: field-major.
-        columns.push_back(header.data == PcdData::kBinary
-                              ? Column{data + offset, point_bytes, f.target,
-                                       ColumnFunctionFor<false>(f.type)}
-                              : Column{decompressed.get() + n * offset,
-                                       f.Bytes(), f.target,
-                                       ColumnFunctionFor<false>(f.type)});
+        columns.push_back(Column{data + offset, point_bytes, f.target,
+                                 ColumnFunctionFor<false>(f.type)});
       }
       offset += f.Bytes();
     }
     ConvertColumns(path, columns, n, out);
+  } else if (n > 0) {
+    DecodeCompressedPoints(path, header, compressed_data, compressed_size, out);
   }
   const uint64_t dropped =
       ApplyNanPolicy(path, /*drop_nan=*/header.height > 1, &cloud);
