@@ -17,6 +17,7 @@
 #include "geometry/point_cloud_io.h"
 
 #include <fcntl.h>
+#include <omp.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -25,6 +26,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <new>
@@ -132,6 +134,8 @@ class LineReader {
   }
   // Start of the bytes after the lines read so far.
   const char* position() const { return p_; }
+  // Lines read so far, counted from the start of the file.
+  uint64_t number() const { return number_; }
 
  private:
   const char* p_;
@@ -836,6 +840,182 @@ void ParseAsciiRow(const std::string& path,
   }
 }
 
+// The fast path of ASCII rows, for the common layouts (float32 values into
+// float columns, uint8 colour channels, rgb packed as an unsigned integer):
+// each value parsed straight into its column. Any other layout, and any
+// token it does not take as it stands (a bad or out-of-range value, a float
+// that underflows, a packed rgb written as a float), goes to ParseAsciiRow,
+// which stores the same values or throws the error.
+struct FastAsciiField {
+  enum Kind : uint8_t { kFloat, kChannel, kPackedRgb };
+  Kind kind;
+  float* floats;   // kFloat: point i's value at floats[stride * i]
+  uint8_t* bytes;  // kChannel: bytes[3 * i]; kPackedRgb: bytes[3 * i + 0..2]
+  size_t stride;
+};
+
+// The fast fields of a layout, or none when some field needs the general
+// path.
+std::vector<FastAsciiField> FastAsciiFields(
+    const std::vector<FieldSpec>& fields, const CloudColumns& out) {
+  std::vector<FastAsciiField> fast;
+  for (const FieldSpec& f : fields) {
+    if (f.is_list || f.count != 1) return {};
+    const int t = static_cast<int>(f.target);
+    if (f.type == Scalar::kFloat32 && f.target >= Target::kX &&
+        f.target <= Target::kZ) {
+      fast.push_back({FastAsciiField::kFloat,
+                      out.positions + (t - static_cast<int>(Target::kX)),
+                      nullptr, 3});
+    } else if (f.type == Scalar::kFloat32 && IsFloatColumn(f.target)) {
+      size_t stride;
+      float* column = ScalarColumn(f.target, out, &stride);
+      fast.push_back({FastAsciiField::kFloat, column, nullptr, stride});
+    } else if (f.type == Scalar::kUint8 && f.target >= Target::kRed &&
+               f.target <= Target::kBlue) {
+      fast.push_back({FastAsciiField::kChannel, nullptr,
+                      out.colors + (t - static_cast<int>(Target::kRed)), 3});
+    } else if ((f.type == Scalar::kUint32 || f.type == Scalar::kFloat32) &&
+               f.target == Target::kPackedRgb) {
+      fast.push_back({FastAsciiField::kPackedRgb, nullptr, out.colors, 3});
+    } else {
+      return {};
+    }
+  }
+  return fast;
+}
+
+// Decimal digits only, at most `max`: the value, or false.
+inline bool ParseSmallUnsigned(std::string_view token,
+                               uint64_t max,
+                               uint64_t* value) {
+  if (token.empty() || token.size() > 10) return false;
+  uint64_t v = 0;
+  for (char c : token) {
+    const unsigned d = static_cast<unsigned char>(c) - '0';
+    if (d > 9) return false;
+    v = 10 * v + d;
+  }
+  if (v > max) return false;
+  *value = v;
+  return true;
+}
+
+// Point i's row through the fast fields; false when ParseAsciiRow must
+// decide (values stored so far are then stored again or the row throws).
+bool ParseAsciiRowFast(const Line& line,
+                       const std::vector<FastAsciiField>& fields,
+                       size_t i) {
+  const char* p = line.b;
+  std::string_view token;
+  for (const FastAsciiField& f : fields) {
+    if (!NextToken(&p, line.e, &token)) return false;
+    const char* b = token.data();
+    const char* e = b + token.size();
+    // ParseNumber's leading '+'.
+    if (e - b > 1 && *b == '+' && b[1] != '-' && b[1] != '+') ++b;
+    switch (f.kind) {
+      case FastAsciiField::kFloat: {
+        float v;
+        const auto r = std::from_chars(b, e, v);
+        if (r.ptr != e || r.ec != std::errc()) return false;
+        f.floats[f.stride * i] = v;
+        break;
+      }
+      case FastAsciiField::kChannel: {
+        uint64_t v;
+        if (!ParseSmallUnsigned(std::string_view(b, e - b), 255, &v))
+          return false;
+        f.bytes[3 * i] = static_cast<uint8_t>(v);
+        break;
+      }
+      case FastAsciiField::kPackedRgb: {
+        uint64_t v;
+        if (!ParseSmallUnsigned(std::string_view(b, e - b), 0xffffffffu, &v))
+          return false;
+        StorePackedRgb(static_cast<uint32_t>(v), f.bytes + 3 * i);
+        break;
+      }
+    }
+  }
+  return !NextToken(&p, line.e, &token);
+}
+
+// Parses up to `rows` non-blank lines from the reader's position with
+// row(line, i), i = 0, 1, ...; returns how many there were (fewer: the data
+// ended) and leaves the reader after the last. Large inputs are parsed on
+// OpenMP's threads: the bytes are cut into chunks at line ends, a first
+// pass counts each chunk's rows and lines, and each chunk then parses its
+// rows knowing their indices and line numbers. The rows and the error
+// thrown (the first bad row in the file) are those of the serial loop.
+template <typename RowFn>
+uint64_t ParseAsciiRows(LineReader* reader,
+                        const char* end,
+                        uint64_t rows,
+                        const RowFn& row) {
+  const char* begin = reader->position();
+  const size_t bytes = static_cast<size_t>(end - begin);
+  const int threads = omp_in_parallel() ? 1 : omp_get_max_threads();
+  constexpr size_t kMinChunk = size_t{1} << 20;
+  if (threads <= 1 || bytes < 2 * kMinChunk || rows < 1024) {
+    Line line;
+    uint64_t i = 0;
+    for (; i < rows && reader->Next(&line); ++i)
+      row(line, static_cast<size_t>(i));
+    return i;
+  }
+  const size_t num_chunks =
+      std::min<size_t>(static_cast<size_t>(4 * threads), bytes / kMinChunk);
+  std::vector<const char*> cut(num_chunks + 1, end);
+  cut[0] = begin;
+  for (size_t k = 1; k < num_chunks; ++k) {
+    const char* at = std::max(cut[k - 1], begin + bytes / num_chunks * k);
+    const void* nl = std::memchr(at, '\n', static_cast<size_t>(end - at));
+    cut[k] = nl ? static_cast<const char*>(nl) + 1 : end;
+  }
+  // Rows (non-blank lines) and lines of each chunk.
+  std::vector<uint64_t> chunk_rows(num_chunks), chunk_lines(num_chunks);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (size_t k = 0; k < num_chunks; ++k) {
+    LineReader counter(cut[k], cut[k + 1], 0);
+    Line line;
+    uint64_t n = 0;
+    while (counter.Next(&line)) ++n;
+    chunk_rows[k] = n;
+    chunk_lines[k] = counter.number();
+  }
+  std::vector<uint64_t> first_row(num_chunks + 1, 0);
+  std::vector<uint64_t> lines_before(num_chunks + 1, reader->number());
+  for (size_t k = 0; k < num_chunks; ++k) {
+    first_row[k + 1] = first_row[k] + chunk_rows[k];
+    lines_before[k + 1] = lines_before[k] + chunk_lines[k];
+  }
+  std::vector<std::exception_ptr> errors(num_chunks);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (size_t k = 0; k < num_chunks; ++k) {
+    if (first_row[k] >= rows) continue;
+    try {
+      LineReader chunk(cut[k], cut[k + 1], lines_before[k]);
+      Line line;
+      for (uint64_t i = first_row[k]; i < rows && chunk.Next(&line); ++i)
+        row(line, static_cast<size_t>(i));
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+  // Leave the reader after row `rows` - 1 (or at the end).
+  const uint64_t found = std::min(rows, first_row[num_chunks]);
+  size_t k = 0;
+  while (k + 1 < num_chunks && first_row[k + 1] < found) ++k;
+  LineReader after(cut[k], end, lines_before[k]);
+  Line line;
+  for (uint64_t i = first_row[k]; i < found; ++i) after.Next(&line);
+  *reader = after;
+  return found;
+}
+
 // ---------------------------------------------------------------------------
 // The NaN policy (point_cloud_io.h).
 
@@ -1238,17 +1418,23 @@ PointCloud ReadPlyFile(const std::string& path) {
   } else {
     LineReader lines(p, end, header.lines);
     Line line;
+    const std::vector<FastAsciiField> fast =
+        FastAsciiFields(vertex.properties, out);
     for (size_t k = 0; k < header.elements.size(); ++k) {
       const PlyElement& e = header.elements[k];
-      for (uint64_t i = 0; i < e.count; ++i) {
-        if (!lines.Next(&line)) {
-          ThrowInputError(path, "truncated: the file ends after ", i, " of ",
-                          e.count, " '", Excerpt(e.name), "' lines");
-        }
-        if (k == header.vertex) {
-          ParseAsciiRow(path, line, e.properties, "property",
-                        static_cast<size_t>(i), out);
-        }
+      uint64_t found = 0;
+      if (k == header.vertex) {
+        found = ParseAsciiRows(
+            &lines, end, e.count, [&](const Line& row, size_t i) {
+              if (fast.empty() || !ParseAsciiRowFast(row, fast, i))
+                ParseAsciiRow(path, row, e.properties, "property", i, out);
+            });
+      } else {
+        while (found < e.count && lines.Next(&line)) ++found;
+      }
+      if (found < e.count) {
+        ThrowInputError(path, "truncated: the file ends after ", found, " of ",
+                        e.count, " '", Excerpt(e.name), "' lines");
       }
     }
     if (lines.Next(&line)) {
@@ -1574,12 +1760,16 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
   if (header.data == PcdData::kAscii) {
     LineReader lines(data, file.end(), header.lines);
     Line line;
-    for (size_t i = 0; i < n; ++i) {
-      if (!lines.Next(&line)) {
-        ThrowInputError(path, "truncated: the file ends after ", i, " of ", n,
-                        " points");
-      }
-      ParseAsciiRow(path, line, header.fields, "field", i, out);
+    const std::vector<FastAsciiField> fast =
+        FastAsciiFields(header.fields, out);
+    const uint64_t found =
+        ParseAsciiRows(&lines, file.end(), n, [&](const Line& row, size_t i) {
+          if (fast.empty() || !ParseAsciiRowFast(row, fast, i))
+            ParseAsciiRow(path, row, header.fields, "field", i, out);
+        });
+    if (found < n) {
+      ThrowInputError(path, "truncated: the file ends after ", found, " of ", n,
+                      " points");
     }
     if (lines.Next(&line)) {
       ThrowInputError(path, "line ", line.number,
