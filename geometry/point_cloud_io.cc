@@ -1043,7 +1043,16 @@ uint64_t ApplyNanPolicy(const std::string& path,
   const float* xyz = n ? cloud->positions[0].data() : nullptr;
   std::vector<uint8_t> keep;
   uint64_t dropped = 0;
-  for (size_t i = 0; i < n; ++i) {
+  // A branch-free scan first (a float is finite iff its exponent bits are
+  // not all ones; the loop vectorises); the point loop below only runs when
+  // some coordinate is NaN or infinite.
+  uint32_t any_bad = 0;
+  for (size_t k = 0; k < 3 * n; ++k) {
+    uint32_t u;
+    std::memcpy(&u, xyz + k, sizeof u);
+    any_bad |= static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
+  }
+  for (size_t i = 0; any_bad && i < n; ++i) {
     const float x = xyz[3 * i], y = xyz[3 * i + 1], z = xyz[3 * i + 2];
     if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) continue;
     if (drop_nan && (std::isnan(x) || std::isnan(y) || std::isnan(z))) {
