@@ -29,6 +29,11 @@
 // writers below store capture footprints. Everything else (normals, `alpha`,
 // `label`, PCD `_` padding, lists, other PLY elements such as faces) is
 // skipped.
+//
+// Threads: ASCII bodies of 2 MB and more are parsed in chunks on OpenMP's
+// threads (OMP_NUM_THREADS; one thread inside a parallel region), with the
+// same result and the same first error as one thread. Everything else reads
+// on the calling thread.
 
 #include <cstdint>
 #include <string>
