@@ -859,6 +859,8 @@ struct FastAsciiField {
 std::vector<FastAsciiField> FastAsciiFields(
     const std::vector<FieldSpec>& fields, const CloudColumns& out) {
   std::vector<FastAsciiField> fast;
+  // No points (the columns are null): no rows to parse.
+  if (!out.positions) return fast;
   for (const FieldSpec& f : fields) {
     if (f.is_list || f.count != 1) return {};
     const int t = static_cast<int>(f.target);
