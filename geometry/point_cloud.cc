@@ -47,21 +47,27 @@ void PointCloud::Check(const std::string& what) const {
                          what, ": point ", i, " has footprint ", footprints[i],
                          " (must be finite and >= 0)");
   }
-  // Branch-free scan first (a float is finite iff its exponent bits are not
-  // all ones; the loop vectorises), then locate the first bad point for the
+  // The branch-free scan first, then locate the first bad point for the
   // message.
+  if (AllPositionsFinite()) return;
+  for (size_t i = 0; i < n; ++i) {
+    GEODRIVE_CHECK_INPUT(positions[i].allFinite(), what, ": point ", i,
+                         " is not finite");
+  }
+}
+
+bool PointCloud::AllPositionsFinite() const {
+  // A float is finite iff its exponent bits are not all ones.
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "packed positions");
-  const float* values = n ? positions[0].data() : nullptr;
+  const size_t count = 3 * positions.size();
+  const float* values = count ? positions[0].data() : nullptr;
   uint32_t bad = 0;
-  for (size_t k = 0; k < 3 * n; ++k) {
+  for (size_t k = 0; k < count; ++k) {
     uint32_t u;
     std::memcpy(&u, values + k, sizeof u);
     bad |= static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
   }
-  if (!bad) return;
-  for (size_t i = 0; i < n; ++i) {
-    GEODRIVE_CHECK_INPUT(positions[i].allFinite(), what, ": point ", i, " is not finite");
-  }
+  return bad == 0;
 }
 
 Eigen::AlignedBox3f PointCloud::Bounds() const {

@@ -44,6 +44,9 @@ struct PointCloud {
   // Throws InputError naming `what` if an attribute's size differs from size() or a position is
   // not finite.
   void Check(const std::string& what = "point cloud") const;
+  // Whether every coordinate is finite: a branch-free scan that vectorises
+  // (the readers' NaN policy and Check run it before any per-point loop).
+  bool AllPositionsFinite() const;
   // Axis-aligned bounds of the finite positions (empty box for an empty cloud).
   Eigen::AlignedBox3f Bounds() const;
   // Appends `other`; attributes present in only one of the clouds are dropped from the result.

@@ -887,22 +887,6 @@ std::vector<FastAsciiField> FastAsciiFields(
   return fast;
 }
 
-// Decimal digits only, at most `max`: the value, or false.
-inline bool ParseSmallUnsigned(std::string_view token,
-                               uint64_t max,
-                               uint64_t* value) {
-  if (token.empty() || token.size() > 10) return false;
-  uint64_t v = 0;
-  for (char c : token) {
-    const unsigned d = static_cast<unsigned char>(c) - '0';
-    if (d > 9) return false;
-    v = 10 * v + d;
-  }
-  if (v > max) return false;
-  *value = v;
-  return true;
-}
-
 // Point i's row through the fast fields; false when ParseAsciiRow must
 // decide (values stored so far are then stored again or the row throws).
 bool ParseAsciiRowFast(const Line& line,
@@ -926,14 +910,13 @@ bool ParseAsciiRowFast(const Line& line,
       }
       case FastAsciiField::kChannel: {
         uint64_t v;
-        if (!ParseSmallUnsigned(std::string_view(b, e - b), 255, &v))
-          return false;
+        if (!ParseCount(std::string_view(b, e - b), 255, &v)) return false;
         f.bytes[3 * i] = static_cast<uint8_t>(v);
         break;
       }
       case FastAsciiField::kPackedRgb: {
         uint64_t v;
-        if (!ParseSmallUnsigned(std::string_view(b, e - b), 0xffffffffu, &v))
+        if (!ParseCount(std::string_view(b, e - b), 0xffffffffu, &v))
           return false;
         StorePackedRgb(static_cast<uint32_t>(v), f.bytes + 3 * i);
         break;
@@ -1045,15 +1028,8 @@ uint64_t ApplyNanPolicy(const std::string& path,
   const float* xyz = n ? cloud->positions[0].data() : nullptr;
   std::vector<uint8_t> keep;
   uint64_t dropped = 0;
-  // A branch-free scan first (a float is finite iff its exponent bits are
-  // not all ones; the loop vectorises); the point loop below only runs when
-  // some coordinate is NaN or infinite.
-  uint32_t any_bad = 0;
-  for (size_t k = 0; k < 3 * n; ++k) {
-    uint32_t u;
-    std::memcpy(&u, xyz + k, sizeof u);
-    any_bad |= static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
-  }
+  // The point loop only runs when some coordinate is NaN or infinite.
+  const bool any_bad = !cloud->AllPositionsFinite();
   for (size_t i = 0; any_bad && i < n; ++i) {
     const float x = xyz[3 * i], y = xyz[3 * i + 1], z = xyz[3 * i + 2];
     if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) continue;
