@@ -60,9 +60,11 @@ std::vector<std::string> Samples() {
   for (char& c : noise) c = static_cast<char>(rng());
   samples.push_back(noise);
   samples.push_back(std::string(70000, '\0'));
+  // Longer than LZF's 8 KiB window, so the decoder's unchecked fast loop
+  // (which starts past it) copies overlapping back-references too.
   for (int period = 1; period <= 20; ++period) {
     std::string s;
-    for (int k = 0; k < 3000 + period; ++k)
+    for (int k = 0; k < 12000 + period; ++k)
       s.push_back(static_cast<char>('a' + (k % period)));
     samples.push_back(s);
   }
