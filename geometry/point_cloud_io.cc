@@ -1471,9 +1471,13 @@ Scalar PcdScalar(char type, uint64_t size) {
   }
 }
 
-PcdHeader ParsePcdHeader(const std::string& path, const FileBuffer& file) {
-  if (file.size == 0) ThrowInputError(path, "empty file (expected a PCD file)");
-  LineReader lines(file.begin(), file.end(), 0);
+// The header in [begin, end): the whole file, or whole lines of its start
+// that include the DATA line (PcdHeaderEnd); the same lines either way.
+PcdHeader ParsePcdHeader(const std::string& path,
+                         const char* begin,
+                         const char* end) {
+  if (begin == end) ThrowInputError(path, "empty file (expected a PCD file)");
+  LineReader lines(begin, end, 0);
   Line line;
   auto bad = [&](const std::string& what) {
     ThrowInputError(path, "malformed PCD header: ", what, " (line ",
@@ -1556,7 +1560,7 @@ PcdHeader ParsePcdHeader(const std::string& path, const FileBuffer& file) {
     }
   }
   header.lines = line.number;
-  header.data_offset = static_cast<size_t>(lines.position() - file.begin());
+  header.data_offset = static_cast<size_t>(lines.position() - begin);
   if (!have_fields || names.empty()) bad("no FIELDS");
   const size_t nf = names.size();
   if ((have_size && sizes.size() != nf) || (have_type && types.size() != nf) ||
@@ -1611,6 +1615,111 @@ PcdHeader ParsePcdHeader(const std::string& path, const FileBuffer& file) {
   return header;
 }
 
+// A PCD file read from its start as far as the reader needs (Buffer,
+// ReadAll), then, for an LZF block, streamed on (Seek, ReadNext) without
+// holding the block: 160 MB less memory, and as many fewer page faults, at
+// 10 M points.
+class PcdFile {
+ public:
+  // Opens `path` and buffers its first `first_bytes` (or all of it).
+  PcdFile(const std::string& path, size_t first_bytes) : path_(path) {
+    size_ = FileSizeOrThrow(path);
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd_ < 0) ThrowOpenError(path, errno);
+    Buffer(std::min<uint64_t>(size_, first_bytes));
+  }
+  ~PcdFile() { ::close(fd_); }
+  PcdFile(const PcdFile&) = delete;
+  PcdFile& operator=(const PcdFile&) = delete;
+
+  uint64_t size() const { return size_; }
+  // The buffered bytes: the file's first buffered() bytes.
+  const char* begin() const { return bytes_.get(); }
+  size_t buffered() const { return buffered_; }
+
+  // Buffers the file's first `n` bytes (n <= size()); throws as
+  // ReadWholeFile.
+  void Buffer(uint64_t n) {
+    if (n <= buffered_) return;
+    if (n > capacity_) {
+      std::unique_ptr<char[]> grown;
+      try {
+        grown.reset(new char[n + 1]);
+      } catch (const std::bad_alloc&) {
+        ThrowInputError(path_, "file of ", size_,
+                        " bytes does not fit in memory");
+      }
+      if (buffered_ > 0) std::memcpy(grown.get(), bytes_.get(), buffered_);
+      bytes_ = std::move(grown);
+      capacity_ = n;
+    }
+    if (!ReadNext(reinterpret_cast<uint8_t*>(bytes_.get() + buffered_),
+                  n - buffered_)) {
+      ThrowReadError();
+    }
+    buffered_ = n;
+  }
+  void ReadAll() { Buffer(size_); }
+
+  // Streaming: ReadNext reads on from file offset `offset` (>= buffered()).
+  void Seek(uint64_t offset) {
+    if (::lseek(fd_, static_cast<off_t>(offset), SEEK_SET) < 0) {
+      read_error_ = errno;
+      seek_failed_ = true;
+    }
+  }
+  // Reads the next n bytes into dst; false when the file ends first or a
+  // read fails (ThrowReadError says which).
+  bool ReadNext(uint8_t* dst, size_t n) {
+    if (seek_failed_) return false;
+    while (n > 0) {
+      const ssize_t r = ::read(fd_, dst, n);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) {
+        read_error_ = r < 0 ? errno : 0;
+        return false;
+      }
+      dst += r;
+      n -= static_cast<size_t>(r);
+    }
+    return true;
+  }
+  [[noreturn]] void ThrowReadError() const {
+    if (read_error_ != 0) {
+      ThrowInputError(path_, "cannot read (", std::strerror(read_error_), ")");
+    }
+    ThrowInputError(path_, "file shrank while it was read");
+  }
+
+ private:
+  const std::string& path_;
+  uint64_t size_ = 0;
+  int fd_ = -1;
+  std::unique_ptr<char[]> bytes_;
+  uint64_t capacity_ = 0;
+  uint64_t buffered_ = 0;
+  int read_error_ = 0;
+  bool seek_failed_ = false;
+};
+
+// The end of the whole lines in head[0, n) when one of them is a DATA line
+// (its first token is DATA); nullptr otherwise.
+const char* PcdHeaderEnd(const char* head, size_t n) {
+  const void* last = n > 0 ? memrchr(head, '\n', n) : nullptr;
+  if (!last) return nullptr;
+  const char* end = static_cast<const char*>(last) + 1;
+  LineReader lines(head, end, 0);
+  Line line;
+  while (lines.Next(&line)) {
+    const size_t len = static_cast<size_t>(line.e - line.b);
+    if (len >= 4 && std::memcmp(line.b, "DATA", 4) == 0 &&
+        (len == 4 || IsBlank(line.b[4]))) {
+      return end;
+    }
+  }
+  return nullptr;
+}
+
 // The LZF sink of a binary_compressed block (PCL's layout: the fields one
 // after another, all of field 0's values, then field 1's, ...): each piece
 // of the stream is converted into the cloud's columns as it comes, whole
@@ -1663,19 +1772,21 @@ class CompressedColumnsSink {
   std::vector<Field> fields_;
 };
 
+// Decodes the LZF block of compressed_size bytes that `file` reads next.
 void DecodeCompressedPoints(const std::string& path,
                             const PcdHeader& header,
-                            const char* compressed,
+                            PcdFile* file,
                             uint32_t compressed_size,
                             const CloudColumns& out) {
-  // 256 KiB pieces: the decoder's buffer stays in a core's L2 cache.
+  // 256 KiB pieces and input chunks: both stay in a core's L2 cache.
   constexpr size_t kPieceBytes = size_t{256} << 10;
   const uint64_t uncompressed = header.points() * header.PointBytes();
   CompressedColumnsSink sink(path, header, out);
   uint64_t produced = 0;
-  const lzf_stream::LzfResult result = lzf_stream::DecodeLzf(
-      reinterpret_cast<const uint8_t*>(compressed), compressed_size,
-      uncompressed, kPieceBytes, sink, &produced);
+  const lzf_stream::LzfResult result = lzf_stream::DecodeLzfStream(
+      compressed_size, uncompressed, kPieceBytes, kPieceBytes, sink, &produced,
+      [&](uint8_t* dst, size_t n) { return file->ReadNext(dst, n); });
+  if (result == lzf_stream::LzfResult::kInputStopped) file->ThrowReadError();
   if (result != lzf_stream::LzfResult::kOk) {
     // Bytes decoded before the failure (short: all the stream gave).
     ThrowInputError(
@@ -1686,15 +1797,27 @@ void DecodeCompressedPoints(const std::string& path,
 }
 
 PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
-  const FileBuffer file = ReadWholeFile(path);
-  const PcdHeader header = ParsePcdHeader(path, file);
+  // The header from the file's first 64 KiB (whole lines), or from all of it
+  // when it is longer. ASCII and binary points are read whole; an LZF block
+  // is decoded as it is read, never held whole.
+  PcdFile file(path, size_t{64} << 10);
+  const char* header_end = PcdHeaderEnd(file.begin(), file.buffered());
+  if (!header_end) {
+    file.ReadAll();
+    header_end = file.begin() + file.size();
+  }
+  const PcdHeader header = ParsePcdHeader(path, file.begin(), header_end);
+  if (header.data != PcdData::kBinaryCompressed) {
+    file.ReadAll();
+  } else {
+    file.Buffer(std::min<uint64_t>(file.size(), header.data_offset + 8));
+  }
   const size_t n = static_cast<size_t>(header.points());
   const size_t point_bytes = header.PointBytes();
   const char* data = file.begin() + header.data_offset;
-  const uint64_t left = file.size - header.data_offset;
+  const uint64_t left = file.size() - header.data_offset;
   PointCloud cloud;
-  const char* compressed_data = nullptr;  // binary_compressed: the LZF stream
-  uint32_t compressed_size = 0;
+  uint32_t compressed_size = 0;  // binary_compressed: the LZF block's bytes
 
   // Sizes first, allocation after.
   if (header.data == PcdData::kAscii) {
@@ -1739,18 +1862,18 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
                       " bytes of LZF data cannot hold ", uncompressed,
                       " bytes");
     }
-    compressed_data = data + 8;
     compressed_size = compressed;
   }
 
   const CloudColumns out = AllocateCloud(n, header.fields, &cloud);
   if (header.data == PcdData::kAscii) {
-    LineReader lines(data, file.end(), header.lines);
+    const char* file_end = file.begin() + file.size();
+    LineReader lines(data, file_end, header.lines);
     Line line;
     const std::vector<FastAsciiField> fast =
         FastAsciiFields(header.fields, out);
     const uint64_t found =
-        ParseAsciiRows(&lines, file.end(), n, [&](const Line& row, size_t i) {
+        ParseAsciiRows(&lines, file_end, n, [&](const Line& row, size_t i) {
           if (fast.empty() || !ParseAsciiRowFast(row, fast, i))
             ParseAsciiRow(path, row, header.fields, "field", i, out);
         });
@@ -1775,7 +1898,8 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
     }
     ConvertColumns(path, columns, n, out);
   } else if (n > 0) {
-    DecodeCompressedPoints(path, header, compressed_data, compressed_size, out);
+    file.Seek(header.data_offset + 8);
+    DecodeCompressedPoints(path, header, &file, compressed_size, out);
   }
   const uint64_t dropped =
       ApplyNanPolicy(path, /*drop_nan=*/header.height > 1, &cloud);

@@ -36,6 +36,8 @@ enum class LzfResult {
   kTooLong,
   // The input ended before the declared size was reached.
   kShort,
+  // DecodeLzfStream's read failed: the rest of the stream never arrived.
+  kInputStopped,
 };
 
 // Largest back-reference distance, and the most bytes one instruction
@@ -43,6 +45,9 @@ enum class LzfResult {
 // copied 16 at a time).
 constexpr size_t kWindow = 8192;
 constexpr size_t kSlack = 512;
+// The most input bytes one instruction reads (a control byte and a 32-byte
+// literal run).
+constexpr size_t kMaxInstructionBytes = 33;
 // The most bytes one instruction writes (a back-reference of 7 + 255 + 2),
 // and more input bytes than one instruction reads (a control byte and a
 // 32-byte literal run read as 32).
@@ -94,15 +99,19 @@ struct LzfCursor {
   size_t room;  // bytes the declared size still allows after buf[op]
 };
 
-// Decodes instructions until buf[stop] is reached or passed, or the input
-// ends; kOk unless the stream is bad.
-inline LzfResult DecodeUntil(LzfCursor* c, size_t stop) {
+// Decodes instructions until buf[stop] is reached or passed, or the next
+// instruction starts at or after `in_limit` (<= c->in_end; every instruction
+// that starts before it has all its bytes before c->in_end, or c->in_end is
+// the stream's end); kOk unless the stream is bad.
+inline LzfResult DecodeUntil(LzfCursor* c,
+                             size_t stop,
+                             const uint8_t* in_limit) {
   const uint8_t* ip = c->ip;
   const uint8_t* const in_end = c->in_end;
   uint8_t* const buf = c->buf;
   size_t op = c->op, room = c->room;
   LzfResult result = LzfResult::kOk;
-  while (ip < in_end && op < stop) {
+  while (ip < in_limit && op < stop) {
     if (op >= kWindow && static_cast<size_t>(in_end - ip) > kFastInput &&
         room > kMaxInstructionOutput) {
       // Far from both ends: every instruction's bytes are in, its output
@@ -185,21 +194,31 @@ inline LzfResult DecodeUntil(LzfCursor* c, size_t stop) {
   return result;
 }
 
-// Decodes in[0, in_size), which must expand to exactly out_size bytes. The
-// output goes to sink.Consume(offset, data, n) in stream order, in pieces of
-// about `piece_bytes`; Consume returns how many of the n bytes it used, at
-// least n - 64 (a partial value at the end of a piece is handed again, at
-// the start of the next one). The last call ends at out_size and must use
-// every byte. *produced: the output length reached (for messages).
-template <typename Sink>
-LzfResult DecodeLzf(const uint8_t* in,
-                    size_t in_size,
-                    uint64_t out_size,
-                    size_t piece_bytes,
-                    Sink& sink,
-                    uint64_t* produced) {
+// Decodes a stream of in_size bytes, which must expand to exactly out_size
+// bytes, reading it in chunks of about `input_bytes` (at least 64) through
+// read(dst, n), which fills dst with the stream's next n bytes or returns
+// false (then the result is kInputStopped). The output goes to
+// sink.Consume(offset, data, n) in stream order, in pieces of about
+// `piece_bytes`; Consume returns how many of the n bytes it used, at least
+// n - 64 (a partial value at the end of a piece is handed again, at the start
+// of the next one). The last call ends at out_size and must use every byte.
+// *produced: the output length reached (for messages). Memory: one input
+// chunk, the 8 KiB window and one piece, whatever the stream's size.
+template <typename Sink, typename Read>
+LzfResult DecodeLzfStream(uint64_t in_size,
+                          uint64_t out_size,
+                          size_t piece_bytes,
+                          size_t input_bytes,
+                          Sink& sink,
+                          uint64_t* produced,
+                          Read&& read) {
+  input_bytes = std::max<size_t>(input_bytes, 64);
   std::vector<uint8_t> buffer(kWindow + piece_bytes + kSlack + 64);
-  LzfCursor c{in, in + in_size, buffer.data(), 0, out_size};
+  // The input chunk, after up to kMaxInstructionBytes carried over from the
+  // last one (an instruction that chunk cut).
+  std::vector<uint8_t> input(kMaxInstructionBytes + input_bytes);
+  uint64_t unread = in_size;  // stream bytes not yet read
+  LzfCursor c{input.data(), input.data(), buffer.data(), 0, out_size};
   uint64_t base = 0;      // stream offset of buf[0]
   uint64_t consumed = 0;  // stream offset the sink has used up to
   auto hand_out = [&]() {
@@ -207,9 +226,29 @@ LzfResult DecodeLzf(const uint8_t* in,
     consumed += sink.Consume(consumed, c.buf + from, c.op - from);
   };
   LzfResult result = LzfResult::kOk;
-  while (result == LzfResult::kOk && c.ip < c.in_end) {
-    result = DecodeUntil(&c, kWindow + piece_bytes);
-    if (result != LzfResult::kOk || c.ip == c.in_end) break;
+  for (;;) {
+    size_t left = static_cast<size_t>(c.in_end - c.ip);
+    if (unread > 0 && left <= kMaxInstructionBytes) {  // next chunk
+      std::memmove(input.data(), c.ip, left);
+      const size_t n =
+          static_cast<size_t>(std::min<uint64_t>(unread, input_bytes));
+      if (!read(input.data() + left, n)) {
+        result = LzfResult::kInputStopped;
+        break;
+      }
+      unread -= n;
+      c.ip = input.data();
+      c.in_end = input.data() + left + n;
+      left += n;
+    }
+    if (left == 0) break;  // the stream's end
+    // Before the stream's end, an instruction is decoded only if all its
+    // bytes are in this chunk.
+    const uint8_t* const in_limit =
+        unread == 0 ? c.in_end : c.in_end - kMaxInstructionBytes;
+    result = DecodeUntil(&c, kWindow + piece_bytes, in_limit);
+    if (result != LzfResult::kOk) break;
+    if (c.op < kWindow + piece_bytes) continue;  // the chunk is used up
     hand_out();
     // Keep the back-reference window and whatever the sink did not use.
     size_t keep = c.op >= kWindow ? c.op - kWindow : 0;
@@ -223,6 +262,23 @@ LzfResult DecodeLzf(const uint8_t* in,
     result = LzfResult::kShort;
   if (result == LzfResult::kOk) hand_out();
   return result;
+}
+
+// DecodeLzfStream over in[0, in_size), in memory.
+template <typename Sink>
+LzfResult DecodeLzf(const uint8_t* in,
+                    size_t in_size,
+                    uint64_t out_size,
+                    size_t piece_bytes,
+                    Sink& sink,
+                    uint64_t* produced) {
+  size_t at = 0;
+  return DecodeLzfStream(in_size, out_size, piece_bytes, size_t{64} << 10, sink,
+                         produced, [&](uint8_t* dst, size_t n) {
+                           std::memcpy(dst, in + at, n);
+                           at += n;
+                           return true;
+                         });
 }
 
 }  // namespace lzf_stream

@@ -17,6 +17,7 @@ namespace geodrive {
 namespace {
 
 using lzf_stream::DecodeLzf;
+using lzf_stream::DecodeLzfStream;
 using lzf_stream::LzfResult;
 
 // Collects the decoded bytes. With `hold` > 0 it leaves up to `hold` bytes
@@ -113,6 +114,65 @@ TEST(LzfStream, DecodesWhatLiblzfWritesForAnyPieceSize) {
   }
 }
 
+// DecodeLzfStream over `in`, read `input_bytes` at a time; `fail_after`:
+// reads that succeed before one fails.
+LzfResult DecodeInChunks(const std::vector<uint8_t>& in,
+                         uint64_t out_size,
+                         size_t piece,
+                         size_t input_bytes,
+                         CollectingSink* sink,
+                         uint64_t* produced,
+                         int fail_after = -1) {
+  size_t at = 0;
+  int reads = 0;
+  return DecodeLzfStream(in.size(), out_size, piece, input_bytes, *sink,
+                         produced, [&](uint8_t* dst, size_t n) {
+                           if (reads++ == fail_after) return false;
+                           EXPECT_LE(at + n, in.size());
+                           std::memcpy(dst, in.data() + at, n);
+                           at += n;
+                           return true;
+                         });
+}
+
+TEST(LzfStream, DecodesAStreamReadInChunksOfAnySize) {
+  for (const std::string& raw : Samples()) {
+    const std::vector<uint8_t> packed = Compress(raw);
+    for (size_t input_bytes : {1, 64, 65, 97, 1000, 1 << 16}) {
+      for (size_t piece : {7, 4096}) {
+        CollectingSink sink;
+        sink.out_size = raw.size();
+        sink.hold = 3;
+        uint64_t produced = 0;
+        ASSERT_EQ(DecodeInChunks(packed, raw.size(), piece, input_bytes, &sink,
+                                 &produced),
+                  LzfResult::kOk)
+            << raw.size() << " bytes, chunks of " << input_bytes;
+        ASSERT_EQ(sink.bytes, raw)
+            << raw.size() << " bytes, chunks of " << input_bytes;
+      }
+    }
+  }
+}
+
+TEST(LzfStream, StopsWhenAReadFails) {
+  for (const std::string& raw : Samples()) {
+    const std::vector<uint8_t> packed = Compress(raw);
+    if (packed.size() < 1000) continue;
+    for (int fail_after : {0, 1, 5}) {
+      CollectingSink sink;
+      sink.out_size = raw.size();
+      uint64_t produced = 0;
+      EXPECT_EQ(DecodeInChunks(packed, raw.size(), 64, 100, &sink, &produced,
+                               fail_after),
+                LzfResult::kInputStopped);
+      EXPECT_LT(produced, raw.size());
+      // What was handed out is the stream's true start.
+      EXPECT_EQ(sink.bytes, raw.substr(0, sink.bytes.size()));
+    }
+  }
+}
+
 // Corrupted streams: flipped bytes, cut or extended input, a wrong declared
 // size. liblzf's verdict: the stream decodes to exactly the declared size
 // (ok), stops short of it (its return value), or fails (0).
@@ -151,6 +211,17 @@ TEST(LzfStream, SameVerdictAsLiblzfOnCorruptedStreams) {
       uint64_t produced = 0;
       const LzfResult r =
           DecodeLzf(bad.data(), bad.size(), out_size, 64, sink, &produced);
+      {  // the same verdict and output when read in small chunks
+        CollectingSink chunked;
+        chunked.out_size = out_size;
+        uint64_t chunked_produced = 0;
+        ASSERT_EQ(DecodeInChunks(bad, out_size, 64, 64 + trial % 50, &chunked,
+                                 &chunked_produced),
+                  r)
+            << "trial " << trial;
+        ASSERT_EQ(chunked_produced, produced) << "trial " << trial;
+        ASSERT_EQ(chunked.bytes, sink.bytes) << "trial " << trial;
+      }
       if (got == out_size) {
         ++ok;
         ASSERT_EQ(r, LzfResult::kOk) << "trial " << trial;
