@@ -930,6 +930,33 @@ TEST(Pcd, BinaryCompressedMatchesUncompressedExactly) {
               StartsWith(dir + "/cut.pcd: truncated: the compressed block "));
 }
 
+// The reader takes the header from the file's first 64 KiB when it is
+// there and streams the LZF block on from it: headers that end anywhere near
+// that boundary, or past it, give the same cloud.
+TEST(Pcd, CompressedHeaderEndingAnywhereGivesTheSameCloud) {
+  const std::string dir = test::MakeTempDir("pcd_compressed_header");
+  const PointCloud cloud = RandomCloud(20000);
+  const std::string file = CompressedPcd(cloud, 20000, 1);
+  const size_t header = file.find("DATA binary_compressed\n") + 23;
+  ASSERT_GT(file.size(), size_t{200000});
+  // Comment lines before the header put the DATA line's end, or the block's
+  // two sizes, on either side of byte 65536, or the header past it.
+  const size_t k64 = size_t{1} << 16;
+  for (size_t end :
+       {k64 - 100, k64 - 8, k64 - 3, k64, k64 + 1, k64 + 30, 3 * k64}) {
+    std::string comments;
+    for (size_t left = end - header; left > 0;) {  // lines of 2 to 71 bytes
+      const size_t line = left >= 72 || left == 70 ? 70 : left;
+      comments += "#" + std::string(line - 2, 'c') + "\n";
+      left -= line;
+    }
+    ASSERT_EQ(comments.size() + header, end);
+    const std::string path = dir + "/c" + std::to_string(end) + ".pcd";
+    test::WriteFile(path, comments + file);
+    ExpectSameCloud(cloud, ReadPcd(path));
+  }
+}
+
 TEST(Pcd, ReadsOlderHeadersCrlfAndPaddedBinary) {
   const std::string dir = test::MakeTempDir("pcd_old");
   // v0.5: no VERSION, COUNT, WIDTH, HEIGHT or VIEWPOINT; SIZE and TYPE
