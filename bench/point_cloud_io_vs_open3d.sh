@@ -10,7 +10,10 @@
 #
 # Environment: GEODRIVE_BENCH_PCIO_DIR (files; default
 # /tmp/geodrive_bench_point_cloud_io, about 0.9 GB), REPS (ours: benchmark
-# repetitions, median taken; Open3D: best of REPS runs; default 3).
+# repetitions, each the mean of as many calls as fill half a second, the
+# best repetition taken; Open3D: the best of REPS single calls; default 3).
+# Until December 2026 ours was the median repetition against Open3D's best
+# call; on this shared VM the median moved a 3 ms read by 1.5x between runs.
 set -euo pipefail
 
 BUILD_DIR=${1:-build}
@@ -32,12 +35,12 @@ lscpu | grep -E "^Model name|^CPU\(s\)" || true
 echo "flags: $(grep -o -w -E 'avx2|avx512f|avx512bw|avx512vl' /proc/cpuinfo | sort -u | tr '\n' ' ')"
 echo "load: $(cut -d' ' -f1-3 /proc/loadavg)"
 
-echo "== ours ($BENCH, median of $REPS)"
-"$BENCH" --benchmark_repetitions="$REPS" --benchmark_report_aggregates_only=true \
+echo "== ours ($BENCH, $REPS repetitions; median shown, best used below)"
+"$BENCH" --benchmark_repetitions="$REPS" \
   --benchmark_out="$GEODRIVE_BENCH_PCIO_DIR/ours.json" --benchmark_out_format=json \
   2>/dev/null | grep -E "_median" || true
 
-echo "== Open3D (best of $REPS), and the ratio Open3D / ours (wall time)"
+echo "== Open3D (best of $REPS), and the ratio Open3D / ours (wall time, best of $REPS each)"
 /usr/bin/python3 - "$GEODRIVE_BENCH_PCIO_DIR" "$REPS" <<'EOF'
 import json, os, sys, time
 import open3d as o3d
@@ -45,9 +48,11 @@ import open3d as o3d
 d, reps = sys.argv[1], int(sys.argv[2])
 ours = {}
 for b in json.load(open(os.path.join(d, 'ours.json')))['benchmarks']:
-    if b.get('aggregate_name') == 'median':
+    if b.get('run_type') == 'iteration':  # one repetition; keep the best
         # BM_Read/format:K/points:N/process_time/real_time -> without process_time
-        ours[b['run_name'].replace('/process_time', '')] = (b['real_time'], b['cpu_time'])  # ms
+        key = b['run_name'].replace('/process_time', '')
+        if key not in ours or b['real_time'] < ours[key][0]:
+            ours[key] = (b['real_time'], b['cpu_time'])  # ms
 
 names = ['binary.ply', 'ascii.ply', 'binary.pcd', 'compressed.pcd', 'ascii.pcd']
 write_args = {'binary.ply': {}, 'ascii.ply': {'write_ascii': True},
