@@ -6,12 +6,12 @@
 // allocates by the declared vertex count before checking the file (a PLY that
 // declares 50 M vertices in 80 KB takes 880 MB), and PCL 1.13's PCDReader
 // crashes on some malformed headers. No packaged library reads PLY and PCD
-// hardened, so these readers are ours: the whole file is read once, every
-// declared size is checked against the bytes that follow the header before
-// anything is allocated, binary values are copied with memcpy per property
-// (in blocks of points, field by field), ASCII values are parsed with
-// std::from_chars, and LZF (PCD binary_compressed) is decoded in pieces by
-// internal/lzf_stream.h (why not liblzf: there).
+// hardened, so these readers are ours: the file is read once (whole, except
+// a PCD binary_compressed block, which is decoded by internal/lzf_stream.h in
+// chunks as it is read; why not liblzf: there), every declared size is
+// checked against the file's size before anything is allocated, binary values
+// are copied with memcpy per property (in blocks of points, field by field),
+// and ASCII values are parsed with std::from_chars.
 // Policies (limits, NaN, attribute names): point_cloud_io.h.
 
 #include "geometry/point_cloud_io.h"

@@ -5,12 +5,13 @@
 // reference): it copies literal runs and back-references byte by byte (about
 // 2 GB/s on the 2-vCPU development VM, on float data that hardly compresses)
 // and it needs the whole output in one buffer (160 MB for 10 M points,
-// page-faulted fresh on every read). This decoder copies 16 and 32 bytes at a
-// time where the stream allows it, and hands its output to a sink in pieces
-// while keeping only LZF's 8 KiB back-reference window plus one piece in
+// page-faulted fresh on every read), and the whole input too. This decoder
+// reads its input in chunks, copies 16 and 32 bytes at a time where the
+// stream allows it, and hands its output to a sink in pieces while keeping
+// only one input chunk, LZF's 8 KiB back-reference window and one piece in
 // memory. Same format and the same verdicts as liblzf 3.6 with CHECK_INPUT:
-// tests/geometry/point_cloud_io_test.cc compares outputs and errors on
-// streams written by liblzf and on corrupted ones.
+// tests/geometry/lzf_stream_test.cc compares outputs and errors on streams
+// written by liblzf and on corrupted ones.
 //
 // The format: a control byte c. c < 32: a literal run of c + 1 bytes
 // follows. Otherwise a back-reference: length l = c >> 5 (7: plus the next
