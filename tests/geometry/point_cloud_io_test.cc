@@ -930,6 +930,42 @@ TEST(Pcd, BinaryCompressedMatchesUncompressedExactly) {
               StartsWith(dir + "/cut.pcd: truncated: the compressed block "));
 }
 
+// A real LiDAR sweep (34,688 points, 455 KB, more than one of the reader's 256
+// KiB chunks once compressed) as PCL writes binary_compressed: x y z intensity,
+// the fields one after another, LZF by liblzf. The streamed read gives the
+// sweep's values exactly.
+TEST(Pcd, RealSweepAsBinaryCompressed) {
+  const std::string dir = test::MakeTempDir("pcd_real_compressed");
+  const PointCloud sweep =
+      ReadNuscenesLidarBin(test::RealDataPath(kNuscenesSweep));
+  const size_t n = sweep.size();
+  ASSERT_GT(n, size_t{30000});
+  std::string soa;
+  for (int k = 0; k < 4; ++k) {
+    for (size_t i = 0; i < n; ++i) {
+      const float v = k < 3 ? sweep.positions[i][k] : sweep.intensity[i];
+      soa.append(reinterpret_cast<const char*>(&v), 4);
+    }
+  }
+  std::string lzf(soa.size() * 2 + 64, '\0');
+  const unsigned int packed =
+      lzf_compress(soa.data(), static_cast<unsigned int>(soa.size()),
+                   lzf.data(), static_cast<unsigned int>(lzf.size()));
+  ASSERT_GT(packed, 256u << 10);
+  const uint32_t sizes[2] = {packed, static_cast<uint32_t>(soa.size())};
+  test::WriteFile(
+      dir + "/sweep.pcd",
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\n"
+      "TYPE F F F F\nCOUNT 1 1 1 1\nWIDTH " +
+          std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
+          std::to_string(n) + "\nDATA binary_compressed\n" +
+          std::string(reinterpret_cast<const char*>(sizes), 8) +
+          lzf.substr(0, packed));
+  const PointCloud read = ReadPcd(dir + "/sweep.pcd");
+  EXPECT_EQ(read.positions, sweep.positions);
+  EXPECT_EQ(read.intensity, sweep.intensity);
+}
+
 // The reader takes the header from the file's first 64 KiB when it is
 // there and streams the LZF block on from it: headers that end anywhere near
 // that boundary, or past it, give the same cloud.
