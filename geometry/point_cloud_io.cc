@@ -7,8 +7,9 @@
 // declares 50 M vertices in 80 KB takes 880 MB), and PCL 1.13's PCDReader
 // crashes on some malformed headers. No packaged library reads PLY and PCD
 // hardened, so these readers are ours: the file is read once (whole, except
-// a PCD binary_compressed block, which is decoded by internal/lzf_stream.h in
-// chunks as it is read; why not liblzf: there), every declared size is
+// PCD binary points and binary_compressed blocks, which are converted or
+// decoded -- by internal/lzf_stream.h; why not liblzf: there -- in chunks as
+// they are read), every declared size is
 // checked against the file's size before anything is allocated, binary values
 // are copied with memcpy per property (in blocks of points, field by field),
 // and ASCII values are parsed with std::from_chars.
@@ -617,16 +618,19 @@ struct Column {
 
 // Converts fixed-layout binary data block by block (a block of points stays
 // in cache while each field is copied out of it).
+// Converts n points whose records start at each column's base into the
+// cloud's points first_point, first_point + 1, ...
 void ConvertColumns(const std::string& path,
                     const std::vector<Column>& columns,
                     size_t n,
-                    const CloudColumns& out) {
+                    const CloudColumns& out,
+                    size_t first_point = 0) {
   constexpr size_t kBlock = 4096;
   for (size_t first = 0; first < n; first += kBlock) {
     const size_t m = std::min(kBlock, n - first);
     for (const Column& c : columns) {
-      c.convert(path, c.base + first * c.stride, c.stride, first, m, c.target,
-                out);
+      c.convert(path, c.base + first * c.stride, c.stride, first_point + first,
+                m, c.target, out);
     }
   }
 }
@@ -1616,9 +1620,9 @@ PcdHeader ParsePcdHeader(const std::string& path,
 }
 
 // A PCD file read from its start as far as the reader needs (Buffer,
-// ReadAll), then, for an LZF block, streamed on (Seek, ReadNext) without
-// holding the block: 160 MB less memory, and as many fewer page faults, at
-// 10 M points.
+// ReadAll), then, for binary points or an LZF block, streamed on (Seek,
+// ReadNext) without holding them: 160 MB less memory, and as many fewer page
+// faults, at 10 M points.
 class PcdFile {
  public:
   // Opens `path` and buffers its first `first_bytes` (or all of it).
@@ -1798,8 +1802,9 @@ void DecodeCompressedPoints(const std::string& path,
 
 PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
   // The header from the file's first 64 KiB (whole lines), or from all of it
-  // when it is longer. ASCII and binary points are read whole; an LZF block
-  // is decoded as it is read, never held whole.
+  // when it is longer. ASCII points are read whole; binary points and an LZF
+  // block are converted (decoded) chunk by chunk as they are read, never held
+  // whole.
   PcdFile file(path, size_t{64} << 10);
   const char* header_end = PcdHeaderEnd(file.begin(), file.buffered());
   if (!header_end) {
@@ -1807,9 +1812,9 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
     header_end = file.begin() + file.size();
   }
   const PcdHeader header = ParsePcdHeader(path, file.begin(), header_end);
-  if (header.data != PcdData::kBinaryCompressed) {
+  if (header.data == PcdData::kAscii) {
     file.ReadAll();
-  } else {
+  } else if (header.data == PcdData::kBinaryCompressed) {
     file.Buffer(std::min<uint64_t>(file.size(), header.data_offset + 8));
   }
   const size_t n = static_cast<size_t>(header.points());
@@ -1887,16 +1892,30 @@ PointCloud ReadPcdFile(const std::string& path, PcdReadSummary* summary) {
                       Excerpt(line.b, line.e), "')");
     }
   } else if (header.data == PcdData::kBinary && n > 0) {
+    // Read on from the header in chunks of about 256 KiB of whole points,
+    // each converted while it is in cache; the file is never held whole.
+    const size_t chunk_points =
+        std::max<size_t>(1, (size_t{256} << 10) / point_bytes);
+    std::unique_ptr<char[]> chunk(
+        new char[std::min(chunk_points, n) * point_bytes]);
     std::vector<Column> columns;
     size_t offset = 0;
     for (const FieldSpec& f : header.fields) {
       if (f.target != Target::kSkip) {
-        columns.push_back(Column{data + offset, point_bytes, f.target,
+        columns.push_back(Column{chunk.get() + offset, point_bytes, f.target,
                                  ColumnFunctionFor<false>(f.type)});
       }
       offset += f.Bytes();
     }
-    ConvertColumns(path, columns, n, out);
+    file.Seek(header.data_offset);
+    for (size_t first = 0; first < n; first += chunk_points) {
+      const size_t m = std::min(chunk_points, n - first);
+      if (!file.ReadNext(reinterpret_cast<uint8_t*>(chunk.get()),
+                         m * point_bytes)) {
+        file.ThrowReadError();
+      }
+      ConvertColumns(path, columns, m, out, first);
+    }
   } else if (n > 0) {
     file.Seek(header.data_offset + 8);
     DecodeCompressedPoints(path, header, &file, compressed_size, out);

@@ -930,6 +930,23 @@ TEST(Pcd, BinaryCompressedMatchesUncompressedExactly) {
               StartsWith(dir + "/cut.pcd: truncated: the compressed block "));
 }
 
+// Binary points are read on from the header in chunks of about 256 KiB of
+// whole records: a cloud of several chunks whose record size does not divide
+// it reads back exactly, with the header in the first 64 KiB or past them.
+TEST(Pcd, BinaryReadInChunksIsExact) {
+  const std::string dir = test::MakeTempDir("pcd_binary_chunks");
+  const PointCloud cloud = RandomCloud(30000);
+  WritePcd(dir + "/a.pcd", cloud);
+  const std::string file = test::ReadFile(dir + "/a.pcd");
+  ASSERT_GT(file.size(), size_t{3} << 18);
+  ExpectSameCloud(cloud, ReadPcd(dir + "/a.pcd"));
+  std::string comments;
+  while (comments.size() < (size_t{80} << 10))
+    comments += "# a long comment line before the header\n";
+  test::WriteFile(dir + "/b.pcd", comments + file);
+  ExpectSameCloud(cloud, ReadPcd(dir + "/b.pcd"));
+}
+
 // A real LiDAR sweep (34,688 points, 455 KB, more than one of the reader's 256
 // KiB chunks once compressed) as PCL writes binary_compressed: x y z intensity,
 // the fields one after another, LZF by liblzf. The streamed read gives the
