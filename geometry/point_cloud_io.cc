@@ -84,8 +84,8 @@ class FileReader {
   // Buffers the file's first `n` bytes (n <= size()), before any streaming.
   // Throws when they do not fit in memory or cannot be read.
   void Buffer(uint64_t n) {
-    if (n <= buffered_) return;
-    if (n > capacity_) {
+    if (bytes_ && n <= buffered_) return;
+    if (!bytes_ || n > capacity_) {  // never null, even for an empty file
       std::unique_ptr<char[]> grown;
       try {
         grown.reset(new char[n + 1]);
