@@ -83,12 +83,12 @@ void PackedCloud::Assign(size_t offset,
   const bool has_colors = cloud.HasColors();
   if (options.mode == RenderMode::kZBuffer) {
     rgbx.resize(n + 1);
+    rgbx[0] = 0;  // little-endian RGBX black: empty pixels read it
     for (size_t i = 0; i < m; ++i) {
       const Color3u8& c = has_colors ? cloud.colors[i] : kDefaultColor;
-      rgbx[offset + i] =
+      rgbx[1 + offset + i] =
           uint32_t{c[0]} | (uint32_t{c[1]} << 8) | (uint32_t{c[2]} << 16);
     }
-    rgbx[n] = 0;  // little-endian RGBX black: empty pixels read it
   } else {
     colors01.resize(3 * n);
     for (size_t i = 0; i < m; ++i) {

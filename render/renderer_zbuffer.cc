@@ -34,9 +34,15 @@ inline uint64_t PackKey(float z, int index) {
 // that contains its projection; returns the number of such points. Pixel
 // (i, j) covers [i - 0.5, i + 0.5) x [j - 0.5, j + 0.5) in shifted
 // coordinates.
-// Entries [k0, m) of `blk` are projected (ProjectBlock); entries [0, k0)
-// already hold their pixel and key (ProjectPixelsAvx2).
+// Entries [0, packed) of `blk` hold the pixel and key of points known to be
+// in the image, packed to the front (ProjectPixelsAvx2<true>); entries
+// [checked, k0) hold a pixel (-1 outside) and a key (ProjectPixelsAvx2<false>;
+// checked = k0 when there are none); entries [k0, m) are projected
+// (ProjectBlock). Returns the number of points in the image among entries
+// [checked, m).
 inline int64_t SplatPoints(ProjectedBlock* blk,
+                           int packed,
+                           int checked,
                            int k0,
                            int m,
                            int base,
@@ -59,9 +65,15 @@ inline int64_t SplatPoints(ProjectedBlock* blk,
     blk->key[k] = PackKey(blk->z[k], base + k);
     projected += in;
   }
-  // Points outside the image come in runs (a predictable branch); the depth
-  // test itself is a branch-free min.
-  for (int k = 0; k < m; ++k) {
+  // The depth test is a branch-free min; packed points need no check.
+#pragma GCC unroll 4
+  for (int k = 0; k < packed; ++k) {
+    uint64_t* slot = kb + pix[k];
+    const uint64_t key = blk->key[k], old = *slot;
+    *slot = key < old ? key : old;
+  }
+  // Points outside the image come in runs (a predictable branch).
+  for (int k = checked; k < m; ++k) {
     if (pix[k] < 0) continue;
     uint64_t* slot = kb + pix[k];
     const uint64_t key = blk->key[k], old = *slot;
@@ -73,11 +85,38 @@ inline int64_t SplatPoints(ProjectedBlock* blk,
 #ifdef GEODRIVE_HAVE_AVX2_PATH
 #define GEODRIVE_AVX2 __attribute__((target("avx2")))
 
+// Lane permutations that move the selected lanes of a vector to its front,
+// in order (AVX2 has no compress instruction): for 8 x 32-bit lanes by an
+// 8-bit selection, and for 4 x 64-bit lanes (as 8 x 32-bit) by a 4-bit one.
+struct alignas(32) PackTables {
+  int32_t lanes32[256][8];
+  int32_t lanes64[16][8];
+  constexpr PackTables() : lanes32(), lanes64() {
+    for (int bits = 0; bits < 256; ++bits) {
+      int n = 0;
+      for (int i = 0; i < 8; ++i)
+        if (bits >> i & 1) lanes32[bits][n++] = i;
+    }
+    for (int bits = 0; bits < 16; ++bits) {
+      int n = 0;
+      for (int i = 0; i < 4; ++i) {
+        if (!(bits >> i & 1)) continue;
+        lanes64[bits][n++] = 2 * i;
+        lanes64[bits][n++] = 2 * i + 1;
+      }
+    }
+  }
+};
+constexpr PackTables kPack;
+
 // Radius 0, eight points at a time: ProjectBlock and the first pass of
 // SplatPoints fused, with the same float operations in the same order (no
-// FMA), so the pixels and keys are those of the scalar code. Fills entries
-// [0, *k_done) of blk->ok (pixel, -1 outside) and blk->key, where *k_done is m
-// rounded down to a multiple of 8; returns how many of them are in the image.
+// FMA), so the pixels and keys are those of the scalar code. *k_done is set
+// to m rounded down to a multiple of 8; returns how many of points [0,
+// *k_done) are in the image. kPacked = false fills entries [0, *k_done) of
+// blk->ok (pixel, -1 outside) and blk->key; kPacked = true writes only the
+// points in the image, to entries [0, returned count), in point order.
+template <bool kPacked>
 GEODRIVE_AVX2 int64_t ProjectPixelsAvx2(const PackedCloud& soa,
                                         int base,
                                         int m,
@@ -94,12 +133,26 @@ GEODRIVE_AVX2 int64_t ProjectPixelsAvx2(const PackedCloud& soa,
                r8 = _mm256_set1_ps(p.r[8]);
   const __m256 t0 = _mm256_set1_ps(p.t[0]), t1 = _mm256_set1_ps(p.t[1]),
                t2 = _mm256_set1_ps(p.t[2]);
+  // Every constant in a local: the stores below could alias `p`, and the
+  // compiler would load and broadcast it again in every iteration.
+  const __m256 fx = _mm256_set1_ps(p.fx), fy = _mm256_set1_ps(p.fy),
+               cx = _mm256_set1_ps(p.cx), cy = _mm256_set1_ps(p.cy),
+               near = _mm256_set1_ps(p.near), far = _mm256_set1_ps(p.far),
+               width = _mm256_set1_ps(fw), height = _mm256_set1_ps(fh),
+               one = _mm256_set1_ps(1.0f), half = _mm256_set1_ps(0.5f);
+  const __m256i row_stride = _mm256_set1_epi32(w),
+                minus_one = _mm256_set1_epi32(-1);
   const float* px = soa.x.data() + base;
   const float* py = soa.y.data() + base;
   const float* pz = soa.z.data() + base;
+  int32_t* const pix_out = blk->ok;
+  uint64_t* const key_out = blk->key;
+  __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(base),
+                                 _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  const __m256i eight = _mm256_set1_epi32(8);
   int64_t projected = 0;
   int k = 0;
-  for (; k + 8 <= m; k += 8) {
+  for (; k + 8 <= m; k += 8, idx = _mm256_add_epi32(idx, eight)) {
     const __m256 x = _mm256_loadu_ps(px + k), y = _mm256_loadu_ps(py + k),
                  z = _mm256_loadu_ps(pz + k);
     // x_cam = R x + t, evaluated as ((r0 x + r1 y) + r2 z) + t0, as in C++.
@@ -115,49 +168,59 @@ GEODRIVE_AVX2 int64_t ProjectPixelsAvx2(const PackedCloud& soa,
         _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(r3, x), _mm256_mul_ps(r4, y)),
                       _mm256_mul_ps(r5, z)),
         t1);
-    const __m256 inv = _mm256_div_ps(_mm256_set1_ps(1.0f), zc);
+    const __m256 inv = _mm256_div_ps(one, zc);
     // fu = (fx * xc) * inv + cx + 0.5, likewise fv.
-    const __m256 half = _mm256_set1_ps(0.5f);
     const __m256 fu = _mm256_add_ps(
-        _mm256_add_ps(
-            _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(p.fx), xc), inv),
-            _mm256_set1_ps(p.cx)),
-        half);
+        _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(fx, xc), inv), cx), half);
     const __m256 fv = _mm256_add_ps(
-        _mm256_add_ps(
-            _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(p.fy), yc), inv),
-            _mm256_set1_ps(p.cy)),
-        half);
+        _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(fy, yc), inv), cy), half);
     // Sign bit set where near - zc < 0, zc - far < 0, fu >= 0, fu - W < 0,
     // fv >= 0 and fv - H < 0: the scalar code's SignBit tests.
-    __m256 in = _mm256_and_ps(_mm256_sub_ps(_mm256_set1_ps(p.near), zc),
-                              _mm256_sub_ps(zc, _mm256_set1_ps(p.far)));
-    in = _mm256_and_ps(
-        in, _mm256_andnot_ps(fu, _mm256_sub_ps(fu, _mm256_set1_ps(fw))));
-    in = _mm256_and_ps(
-        in, _mm256_andnot_ps(fv, _mm256_sub_ps(fv, _mm256_set1_ps(fh))));
-    // pixel = int(fv) * W + int(fu) inside, -1 outside.
-    const __m256 zero = _mm256_setzero_ps();
-    const __m256i col = _mm256_cvttps_epi32(_mm256_blendv_ps(zero, fu, in));
-    const __m256i row = _mm256_cvttps_epi32(_mm256_blendv_ps(zero, fv, in));
+    __m256 in = _mm256_and_ps(_mm256_sub_ps(near, zc), _mm256_sub_ps(zc, far));
+    in = _mm256_and_ps(in, _mm256_andnot_ps(fu, _mm256_sub_ps(fu, width)));
+    in = _mm256_and_ps(in, _mm256_andnot_ps(fv, _mm256_sub_ps(fv, height)));
+    // pixel = int(fv) * W + int(fu) inside (lanes outside convert to
+    // INT_MIN and are dropped below).
+    const __m256i col = _mm256_cvttps_epi32(fu);
+    const __m256i row = _mm256_cvttps_epi32(fv);
     const __m256i pix =
-        _mm256_add_epi32(_mm256_mullo_epi32(row, _mm256_set1_epi32(w)), col);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(blk->ok + k),
-                        _mm256_castps_si256(_mm256_blendv_ps(
-                            _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
-                            _mm256_castsi256_ps(pix), in)));
-    projected +=
-        __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(in)));
+        _mm256_add_epi32(_mm256_mullo_epi32(row, row_stride), col);
     // key = z bits << 32 | point index: interleave the 32-bit halves, then
     // put the four 64-bit keys of each half back in point order.
-    const __m256i idx = _mm256_add_epi32(
-        _mm256_set1_epi32(base + k), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
     const __m256i zbits = _mm256_castps_si256(zc);
     const __m256i lo = _mm256_unpacklo_epi32(idx, zbits);  // points 0 1 | 4 5
     const __m256i hi = _mm256_unpackhi_epi32(idx, zbits);  // points 2 3 | 6 7
-    __m256i* keys = reinterpret_cast<__m256i*>(blk->key + k);
-    _mm256_storeu_si256(keys, _mm256_permute2x128_si256(lo, hi, 0x20));
-    _mm256_storeu_si256(keys + 1, _mm256_permute2x128_si256(lo, hi, 0x31));
+    const __m256i keys03 = _mm256_permute2x128_si256(lo, hi, 0x20);
+    const __m256i keys47 = _mm256_permute2x128_si256(lo, hi, 0x31);
+    const unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(in));
+    if (kPacked) {
+      const unsigned lo4 = bits & 15u, hi4 = bits >> 4;
+      const int n03 = __builtin_popcount(lo4);
+      _mm256_storeu_si256(
+          reinterpret_cast<__m256i*>(pix_out + projected),
+          _mm256_permutevar8x32_epi32(
+              pix, _mm256_load_si256(
+                       reinterpret_cast<const __m256i*>(kPack.lanes32[bits]))));
+      _mm256_storeu_si256(
+          reinterpret_cast<__m256i*>(key_out + projected),
+          _mm256_permutevar8x32_epi32(
+              keys03, _mm256_load_si256(reinterpret_cast<const __m256i*>(
+                          kPack.lanes64[lo4]))));
+      _mm256_storeu_si256(
+          reinterpret_cast<__m256i*>(key_out + projected + n03),
+          _mm256_permutevar8x32_epi32(
+              keys47, _mm256_load_si256(reinterpret_cast<const __m256i*>(
+                          kPack.lanes64[hi4]))));
+      projected += n03 + __builtin_popcount(hi4);
+    } else {
+      _mm256_storeu_si256(
+          reinterpret_cast<__m256i*>(pix_out + k),
+          _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(minus_one),
+                                               _mm256_castsi256_ps(pix), in)));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(key_out + k), keys03);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(key_out + k + 4), keys47);
+      projected += __builtin_popcount(bits);
+    }
   }
   *k_done = k;
   return projected;
@@ -334,7 +397,7 @@ int64_t SplatCameraFacingFootprints(const PackedCloud& soa,
   int k0 = 0;
 #ifdef GEODRIVE_HAVE_AVX2_PATH
   if (UseAvx2())
-    projected += ProjectPixelsAvx2(soa, base, m, p, w, fw, fh, blk, &k0);
+    projected += ProjectPixelsAvx2<false>(soa, base, m, p, w, fw, fh, blk, &k0);
 #endif
   ProjectBlock(soa, base, m, p, blk, k0);
   int num_magnified = 0;
@@ -355,7 +418,7 @@ int64_t SplatCameraFacingFootprints(const PackedCloud& soa,
       blk->ok[k] = 0;
     }
   }
-  projected += SplatPoints(blk, k0, m, base, w, fw, fh, kb);
+  projected += SplatPoints(blk, 0, 0, k0, m, base, w, fw, fh, kb);
   const float cap = 0.5f * max_magnification;
   const float* px = soa.x.data() + base;
   const float* py = soa.y.data() + base;
@@ -464,20 +527,25 @@ int64_t SplatDisks(const ProjectedBlock& blk,
   return SplatDisksScalar(blk, m, base, r, w, h, kb);
 }
 
-// Z-buffer resolve: key -> RGB (empty pixels read the black sentinel colour
-// at index n), depth, mask and optionally the point index; every key is reset
-// to empty. Returns the number of valid pixels. The AVX2 version writes the
+// Z-buffer resolve: key -> RGB, depth, mask and optionally the point index;
+// every key is reset to empty. Colours are read at the key's low half + 1 in
+// 32 bits: point i's RGBX word is at [i + 1], and the empty key's low half
+// (0xffffffff) wraps to [0], black, so no pixel needs a validity test to read
+// its colour. Returns the number of valid pixels. The AVX2 version writes the
 // same bytes.
 struct ZResolveArgs {
   uint64_t* keys;
   size_t npix;
-  const uint32_t* colors;  // RGBX words, black sentinel at [sentinel]
-  uint32_t sentinel;
+  const uint32_t* colors;  // RGBX words, black at [0], point i at [i + 1]
   uint8_t* rgb;
   uint32_t* depth;  // float bits
   uint8_t* mask;
   int32_t* index;  // nullptr: not wanted
 };
+
+inline uint32_t ColorOfKey(const uint32_t* colors, uint64_t key) {
+  return colors[static_cast<uint32_t>(key) + 1u];
+}
 
 int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
   int64_t valid = 0;
@@ -485,75 +553,84 @@ int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
     const uint64_t key = a.keys[p];
     a.keys[p] = kEmptyKey;
     const uint32_t is_valid = key != kEmptyKey;
-    const uint32_t idx =
-        is_valid ? static_cast<uint32_t>(key & 0xffffffffu) : a.sentinel;
-    const uint32_t c = a.colors[idx];
+    const uint32_t c = ColorOfKey(a.colors, key);
     // Bytes 0..2 of the little-endian RGBX word are R, G, B.
     a.rgb[3 * p] = static_cast<uint8_t>(c);
     a.rgb[3 * p + 1] = static_cast<uint8_t>(c >> 8);
     a.rgb[3 * p + 2] = static_cast<uint8_t>(c >> 16);
     a.depth[p] = is_valid ? static_cast<uint32_t>(key >> 32) : 0u;
     a.mask[p] = static_cast<uint8_t>(0u - is_valid);
-    if (a.index) a.index[p] = is_valid ? static_cast<int32_t>(idx) : -1;
+    if (a.index) {
+      a.index[p] = is_valid ? static_cast<int32_t>(key & 0xffffffffu) : -1;
+    }
     valid += is_valid;
   }
   return valid;
 }
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
-// Eight pixels at a time: split the keys into index and depth halves, gather
-// the colours, shuffle RGBX to RGB.
+// Mask bytes of eight pixels for each 8-bit set of valid flags (bit i: pixel
+// i is valid -> byte i is 0xff).
+struct MaskByteTable {
+  uint64_t bytes[256];
+  constexpr MaskByteTable() : bytes() {
+    for (int v = 0; v < 256; ++v) {
+      for (int i = 0; i < 8; ++i)
+        if (v >> i & 1) bytes[v] |= uint64_t{0xff} << (8 * i);
+    }
+  }
+};
+constexpr MaskByteTable kMaskBytes;
+
+// Eight pixels at a time: the keys split into index and depth halves for the
+// depth, mask and index outputs; the colours read per pixel (scalar loads:
+// on AMD Zen 4/5 a vpgatherdd took 60 % of this loop) and stored as
+// overlapping RGBX words, each X byte overwritten by the next pixel's R.
 __attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
   const __m256i empty = _mm256_set1_epi64x(static_cast<long long>(kEmptyKey));
   const __m256i even_odd = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
   const __m256i empty_hi = _mm256_set1_epi32(0x7fffffff);
-  const __m256i sentinel = _mm256_set1_epi32(static_cast<int>(a.sentinel));
-  // Per 128-bit lane: RGBX x 4 -> RGB x 4 (12 bytes), and byte 0 of each
-  // 32-bit word -> 4 bytes.
-  const __m256i rgb_shuffle =
-      _mm256_setr_epi8(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1,
-                       0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1);
-  const __m256i byte0_shuffle = _mm256_setr_epi8(
-      0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12,
-      -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
+  // Locals, so that the byte stores below do not make the compiler reload
+  // the arguments (uint8_t stores may alias anything).
+  uint64_t* const keys = a.keys;
+  const uint32_t* const colors = a.colors;
+  uint8_t* const rgb_out = a.rgb;
+  uint32_t* const depth_out = a.depth;
+  uint8_t* const mask_out = a.mask;
+  int32_t* const index_out = a.index;
+  const size_t npix = a.npix;
   int64_t valid = 0;
   size_t p = 0;
-  // The second 16-byte RGB store reaches 4 bytes past the 8 pixels: stop
-  // while 2 more pixels remain, the scalar tail does the rest.
-  for (; p + 10 <= a.npix; p += 8) {
-    __m256i* kp = reinterpret_cast<__m256i*>(a.keys + p);
-    const __m256i k0 = _mm256_loadu_si256(kp);
-    const __m256i k1 = _mm256_loadu_si256(kp + 1);
-    _mm256_storeu_si256(kp, empty);
-    _mm256_storeu_si256(kp + 1, empty);
+  // The last 4-byte RGB store reaches 1 byte past the 8 pixels: stop while 2
+  // more pixels remain, the scalar tail does the rest.
+  for (; p + 10 <= npix; p += 8) {
+    uint64_t* const kp = keys + p;
+    const __m256i k0 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp));
+    const __m256i k1 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp + 4));
+    uint8_t* const out = rgb_out + 3 * p;
+    for (int i = 0; i < 8; ++i) {
+      const uint32_t c = ColorOfKey(colors, kp[i]);
+      std::memcpy(out + 3 * i, &c, 4);
+    }
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp), empty);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp + 4), empty);
     const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
     const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
     const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
     const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
     const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
-    const __m256i idx = _mm256_blendv_epi8(lo, sentinel, invalid);
-    const __m256i col =
-        _mm256_i32gather_epi32(reinterpret_cast<const int*>(a.colors), idx, 4);
-    const __m256i rgb = _mm256_shuffle_epi8(col, rgb_shuffle);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p),
-                     _mm256_castsi256_si128(rgb));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(a.rgb + 3 * p + 12),
-                     _mm256_extracti128_si256(rgb, 1));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.depth + p),
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth_out + p),
                         _mm256_andnot_si256(invalid, hi));
-    if (a.index) {
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.index + p),
+    if (index_out) {
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(index_out + p),
                           _mm256_or_si256(lo, invalid));
     }
-    const __m256i m = _mm256_shuffle_epi8(
-        _mm256_andnot_si256(invalid, _mm256_set1_epi32(0xff)), byte0_shuffle);
-    const uint64_t mask8 = static_cast<uint32_t>(_mm256_extract_epi32(m, 0)) |
-                           (static_cast<uint64_t>(static_cast<uint32_t>(
-                                _mm256_extract_epi32(m, 4)))
-                            << 32);
-    std::memcpy(a.mask + p, &mask8, 8);
-    valid += 8 - __builtin_popcount(static_cast<unsigned>(
-                     _mm256_movemask_ps(_mm256_castsi256_ps(invalid))));
+    // The eight mask bytes from the eight valid bits, through a table.
+    const unsigned valid_bits = ~static_cast<unsigned>(_mm256_movemask_ps(
+                                    _mm256_castsi256_ps(invalid))) &
+                                0xffu;
+    std::memcpy(mask_out + p, &kMaskBytes.bytes[valid_bits], 8);
+    valid += __builtin_popcount(valid_bits);
   }
   return valid + ResolveZScalar(a, p);
 }
@@ -586,7 +663,6 @@ void RenderZBuffer(const PackedCloud& soa,
   if (keys.size() != npix + 1) keys.assign(npix + 1, kEmptyKey);
   uint64_t* kb = keys.data();
   ProjectedBlock& blk = scratch->block;
-  const int n = static_cast<int>(soa.size());
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   int64_t projected = 0;
   const float r = static_cast<float>(options.radius_px);
@@ -623,14 +699,16 @@ void RenderZBuffer(const PackedCloud& soa,
         continue;
       }
       if (r <= 0) {
-        int k0 = 0;
+        int k0 = 0, packed = 0;
 #ifdef GEODRIVE_HAVE_AVX2_PATH
-        if (UseAvx2())
-          projected +=
-              ProjectPixelsAvx2(soa, base, m, range.proj, w, fw, fh, &blk, &k0);
+        if (UseAvx2()) {
+          packed = static_cast<int>(ProjectPixelsAvx2<true>(
+              soa, base, m, range.proj, w, fw, fh, &blk, &k0));
+          projected += packed;
+        }
 #endif
         ProjectBlock(soa, base, m, range.proj, &blk, k0);
-        projected += SplatPoints(&blk, k0, m, base, w, fw, fh, kb);
+        projected += SplatPoints(&blk, packed, k0, k0, m, base, w, fw, fh, kb);
         continue;
       }
       ProjectBlock(soa, base, m, range.proj, &blk);
@@ -648,7 +726,6 @@ void RenderZBuffer(const PackedCloud& soa,
   ZResolveArgs args{kb,
                     npix,
                     soa.rgbx.data(),
-                    static_cast<uint32_t>(n),
                     frame->rgb.ptr<uint8_t>(),
                     reinterpret_cast<uint32_t*>(frame->depth.ptr<float>()),
                     frame->mask.ptr<uint8_t>(),

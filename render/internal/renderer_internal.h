@@ -132,7 +132,8 @@ inline uint32_t SignBit(float f) {
 // RenderFramesInto / RenderFramesWithMovingSets call.
 struct PackedCloud {
   std::vector<float> x, y, z;
-  std::vector<uint32_t> rgbx;     // zbuffer: RGBX words + black sentinel at [n]
+  std::vector<uint32_t> rgbx;     // zbuffer: black RGBX word at [0], then
+                                  // point i's at [i + 1]
   std::vector<float> colors01;    // soft: RGB in [0, 1]
   std::vector<int32_t> instance;  // output_instance: id per point (-1 = none)
                                   // + sentinel -1 at [n]
