@@ -86,28 +86,44 @@ inline int64_t SplatPoints(ProjectedBlock* blk,
 #define GEODRIVE_AVX2 __attribute__((target("avx2")))
 
 // Lane permutations that move the selected lanes of a vector to its front,
-// in order (AVX2 has no compress instruction): for 8 x 32-bit lanes by an
-// 8-bit selection, and for 4 x 64-bit lanes (as 8 x 32-bit) by a 4-bit one.
-struct alignas(32) PackTables {
-  int32_t lanes32[256][8];
-  int32_t lanes64[16][8];
-  constexpr PackTables() : lanes32(), lanes64() {
+// in order (AVX2 has no compress instruction), one entry per 8-bit selection
+// of eight points: for their pixels (8 x 32-bit lanes), for the keys of points
+// 0-3 and of points 4-7 (4 x 64-bit lanes, as 8 x 32-bit), and how many of
+// points 0-3 and of all eight are selected.
+struct alignas(32) PackEntry {
+  int32_t pixels[8];
+  int32_t keys03[8];
+  int32_t keys47[8];
+  int32_t count03, count;
+  int32_t unused[6];  // pads the entry to 128 bytes
+};
+struct PackTable {
+  PackEntry entry[256];
+  PackTable() : entry() {
     for (int bits = 0; bits < 256; ++bits) {
-      int n = 0;
-      for (int i = 0; i < 8; ++i)
-        if (bits >> i & 1) lanes32[bits][n++] = i;
-    }
-    for (int bits = 0; bits < 16; ++bits) {
-      int n = 0;
-      for (int i = 0; i < 4; ++i) {
+      PackEntry& e = entry[bits];
+      int n = 0, n03 = 0, n47 = 0;
+      for (int i = 0; i < 8; ++i) {
         if (!(bits >> i & 1)) continue;
-        lanes64[bits][n++] = 2 * i;
-        lanes64[bits][n++] = 2 * i + 1;
+        e.pixels[n++] = i;
+        if (i < 4) {
+          e.keys03[2 * n03] = 2 * i;
+          e.keys03[2 * n03 + 1] = 2 * i + 1;
+          ++n03;
+        } else {
+          e.keys47[2 * n47] = 2 * (i - 4);
+          e.keys47[2 * n47 + 1] = 2 * (i - 4) + 1;
+          ++n47;
+        }
       }
+      e.count03 = n03;
+      e.count = n;
     }
   }
 };
-constexpr PackTables kPack;
+static_assert(sizeof(PackEntry) == 128, "one entry: 4 x 32 bytes");
+// Built at start-up (GCC 12 rejects it as a constant expression).
+const PackTable kPack;
 
 // Radius 0, eight points at a time: ProjectBlock and the first pass of
 // SplatPoints fused, with the same float operations in the same order (no
@@ -150,7 +166,7 @@ GEODRIVE_AVX2 int64_t ProjectPixelsAvx2(const PackedCloud& soa,
   __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(base),
                                  _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
   const __m256i eight = _mm256_set1_epi32(8);
-  int64_t projected = 0;
+  int projected = 0;  // at most m <= kBlock
   int k = 0;
   for (; k + 8 <= m; k += 8, idx = _mm256_add_epi32(idx, eight)) {
     const __m256 x = _mm256_loadu_ps(px + k), y = _mm256_loadu_ps(py + k),
@@ -194,24 +210,24 @@ GEODRIVE_AVX2 int64_t ProjectPixelsAvx2(const PackedCloud& soa,
     const __m256i keys47 = _mm256_permute2x128_si256(lo, hi, 0x31);
     const unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(in));
     if (kPacked) {
-      const unsigned lo4 = bits & 15u, hi4 = bits >> 4;
-      const int n03 = __builtin_popcount(lo4);
+      const PackEntry& e = kPack.entry[bits];
       _mm256_storeu_si256(
           reinterpret_cast<__m256i*>(pix_out + projected),
           _mm256_permutevar8x32_epi32(
-              pix, _mm256_load_si256(
-                       reinterpret_cast<const __m256i*>(kPack.lanes32[bits]))));
+              pix,
+              _mm256_load_si256(reinterpret_cast<const __m256i*>(e.pixels))));
+      uint64_t* const keys = key_out + projected;
       _mm256_storeu_si256(
-          reinterpret_cast<__m256i*>(key_out + projected),
+          reinterpret_cast<__m256i*>(keys),
           _mm256_permutevar8x32_epi32(
-              keys03, _mm256_load_si256(reinterpret_cast<const __m256i*>(
-                          kPack.lanes64[lo4]))));
+              keys03,
+              _mm256_load_si256(reinterpret_cast<const __m256i*>(e.keys03))));
       _mm256_storeu_si256(
-          reinterpret_cast<__m256i*>(key_out + projected + n03),
+          reinterpret_cast<__m256i*>(keys + e.count03),
           _mm256_permutevar8x32_epi32(
-              keys47, _mm256_load_si256(reinterpret_cast<const __m256i*>(
-                          kPack.lanes64[hi4]))));
-      projected += n03 + __builtin_popcount(hi4);
+              keys47,
+              _mm256_load_si256(reinterpret_cast<const __m256i*>(e.keys47))));
+      projected += e.count;
     } else {
       _mm256_storeu_si256(
           reinterpret_cast<__m256i*>(pix_out + k),
