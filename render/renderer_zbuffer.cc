@@ -544,11 +544,11 @@ int64_t SplatDisks(const ProjectedBlock& blk,
 }
 
 // Z-buffer resolve: key -> RGB, depth, mask and optionally the point index;
-// every key is reset to empty. Colours are read at the key's low half + 1 in
-// 32 bits: point i's RGBX word is at [i + 1], and the empty key's low half
-// (0xffffffff) wraps to [0], black, so no pixel needs a validity test to read
-// its colour. Returns the number of valid pixels. The AVX2 version writes the
-// same bytes.
+// every key is reset to empty. Colours are read at the key's low half + 1:
+// point i's RGBX word is at [i + 1], and the empty key's low half (0xffffffff,
+// -1 as a signed 32-bit index) reads [0], black, so no pixel needs a validity
+// test to read its colour. Returns the number of valid pixels. The AVX2 version
+// writes the same bytes.
 struct ZResolveArgs {
   uint64_t* keys;
   size_t npix;
@@ -560,7 +560,9 @@ struct ZResolveArgs {
 };
 
 inline uint32_t ColorOfKey(const uint32_t* colors, uint64_t key) {
-  return colors[static_cast<uint32_t>(key) + 1u];
+  // The low half as a signed index from colors + 1: -1 for an empty key
+  // (point indices are < 2^31), and x86 loads it sign-extended in one step.
+  return (colors + 1)[static_cast<int32_t>(static_cast<uint32_t>(key))];
 }
 
 int64_t ResolveZScalar(const ZResolveArgs& a, size_t begin) {
