@@ -11,6 +11,17 @@ namespace geodrive {
 void PointCloud::Reserve(size_t n) { positions.reserve(n); }
 
 void PointCloud::Check(const std::string& what) const {
+  CheckAttributes(what);
+  // The branch-free scan first, then locate the first bad point for the
+  // message.
+  if (AllPositionsFinite()) return;
+  for (size_t i = 0; i < positions.size(); ++i) {
+    GEODRIVE_CHECK_INPUT(positions[i].allFinite(), what, ": point ", i,
+                         " is not finite");
+  }
+}
+
+void PointCloud::CheckAttributes(const std::string& what) const {
   const size_t n = positions.size();
   auto check = [&](size_t m, const char* name) {
     GEODRIVE_CHECK_INPUT(m == 0 || m == n, what, ": attribute '", name, "' has ", m,
@@ -46,13 +57,6 @@ void PointCloud::Check(const std::string& what) const {
     GEODRIVE_CHECK_INPUT(std::isfinite(footprints[i]) && footprints[i] >= 0,
                          what, ": point ", i, " has footprint ", footprints[i],
                          " (must be finite and >= 0)");
-  }
-  // The branch-free scan first, then locate the first bad point for the
-  // message.
-  if (AllPositionsFinite()) return;
-  for (size_t i = 0; i < n; ++i) {
-    GEODRIVE_CHECK_INPUT(positions[i].allFinite(), what, ": point ", i,
-                         " is not finite");
   }
 }
 

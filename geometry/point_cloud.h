@@ -44,6 +44,9 @@ struct PointCloud {
   // Throws InputError naming `what` if an attribute's size differs from size() or a position is
   // not finite.
   void Check(const std::string& what = "point cloud") const;
+  // Check without the scan of the positions, for callers that test them as
+  // they copy them (and call Check for the message when one is not finite).
+  void CheckAttributes(const std::string& what = "point cloud") const;
   // Whether every coordinate is finite: a branch-free scan that vectorises
   // (the readers' NaN policy and Check run it before any per-point loop).
   bool AllPositionsFinite() const;

@@ -46,7 +46,7 @@ void PackedCloud::Reserve(size_t n, const RenderOptions& options) {
   if (options.output_instance) instance.reserve(n + 1);
 }
 
-void PackedCloud::Assign(size_t offset,
+bool PackedCloud::Assign(size_t offset,
                          const PointCloud& cloud,
                          const RenderOptions& options,
                          bool with_footprints) {
@@ -75,10 +75,22 @@ void PackedCloud::Assign(size_t offset,
   x.resize(n);
   y.resize(n);
   z.resize(n);
+  // The finiteness test rides on the copy (a float is finite iff its
+  // exponent bits are not all ones), so the positions are read once.
+  uint32_t not_finite = 0;
   for (size_t i = 0; i < m; ++i) {
-    x[offset + i] = cloud.positions[i][0];
-    y[offset + i] = cloud.positions[i][1];
-    z[offset + i] = cloud.positions[i][2];
+    const float px = cloud.positions[i][0], py = cloud.positions[i][1],
+                pz = cloud.positions[i][2];
+    x[offset + i] = px;
+    y[offset + i] = py;
+    z[offset + i] = pz;
+    uint32_t bx, by, bz;
+    std::memcpy(&bx, &px, 4);
+    std::memcpy(&by, &py, 4);
+    std::memcpy(&bz, &pz, 4);
+    not_finite |= static_cast<uint32_t>((bx & 0x7f800000u) == 0x7f800000u) |
+                  static_cast<uint32_t>((by & 0x7f800000u) == 0x7f800000u) |
+                  static_cast<uint32_t>((bz & 0x7f800000u) == 0x7f800000u);
   }
   const bool has_colors = cloud.HasColors();
   if (options.mode == RenderMode::kZBuffer) {
@@ -104,6 +116,7 @@ void PackedCloud::Assign(size_t offset,
       instance[offset + i] = has_ids ? cloud.instance_ids[i] : -1;
     instance[n] = -1;  // sentinel: pixels without a point
   }
+  return not_finite == 0;
 }
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
@@ -159,7 +172,9 @@ void CheckCloud(const PointCloud& cloud) {
   GEODRIVE_CHECK_INPUT(cloud.size() < (1ull << 31),
                        "render: the point cloud has ", cloud.size(),
                        " points (at most 2^31 - 1 supported)");
-  cloud.Check("render: point cloud");
+  // The positions are tested for finiteness as they are packed
+  // (RenderCheckedScene).
+  cloud.CheckAttributes("render: point cloud");
 }
 
 PinholeCamera FrameCamera(const PinholeCamera& camera,
@@ -461,13 +476,18 @@ void RenderCheckedScene(const PointCloud& static_cloud,
       zbuffer && options.splat_size == SplatSize::kFootprint;
   PackedCloud packed;
   packed.Reserve(total, options);
+  bool finite;
   if (static_footprints && !static_cloud.HasFootprints()) {
+    static_cloud.Check("render: point cloud");  // before the footprints
     PointCloud with_footprints = static_cloud;
     SetCaptureFootprints(frame_cameras[0], cam_from_world[0], &with_footprints);
-    packed.Assign(0, with_footprints, options, true);
+    finite = packed.Assign(0, with_footprints, options, true);
   } else {
-    packed.Assign(0, static_cloud, options, static_footprints);
+    finite = packed.Assign(0, static_cloud, options, static_footprints);
   }
+  // RenderFramesInto checks the positions here, as they were packed: Check
+  // names the first point that is not finite.
+  if (!finite) static_cloud.Check("render: point cloud");
   std::vector<int> offsets(sets.size());
   for (size_t k = 0; k < sets.size(); ++k) {
     offsets[k] = static_cast<int>(packed.size());

@@ -149,7 +149,8 @@ struct PackedCloud {
 
   // Makes points [offset, offset + cloud.size()) the given cloud's, dropping
   // anything after them; its footprints are packed when `with_footprints`.
-  void Assign(size_t offset,
+  // Returns whether every coordinate copied is finite.
+  bool Assign(size_t offset,
               const PointCloud& cloud,
               const RenderOptions& options,
               bool with_footprints = false);

@@ -608,6 +608,61 @@ TEST(Renderer, MovingSetsFollowTheirTransforms) {
   }
 }
 
+// The static cloud's positions are tested as they are packed: the first
+// point that is not finite is named, in every mode, and a cloud whose
+// attribute sizes disagree is rejected before anything is packed.
+TEST(Renderer, CloudThatIsNotFiniteIsAnError) {
+  const PinholeCamera camera(60, 64, 44.0, 26.0, 80, 56);
+  const std::vector<Rigid3d> poses(2);
+  const PointCloud good = RandomOverlappingCloud(300);
+  struct Case {
+    RenderMode mode;
+    SplatSize splat;
+    double radius;
+  };
+  for (const Case& c : {Case{RenderMode::kZBuffer, SplatSize::kFixed, 0.0},
+                        Case{RenderMode::kZBuffer, SplatSize::kFixed, 1.5},
+                        Case{RenderMode::kZBuffer, SplatSize::kFootprint, 0.0},
+                        Case{RenderMode::kSoft, SplatSize::kFixed, 0.0}}) {
+    RenderOptions options;
+    options.width = camera.width;
+    options.height = camera.height;
+    options.mode = c.mode;
+    options.splat_size = c.splat;
+    options.radius_px = c.radius;
+    RenderResult r;
+    RenderFramesInto(good, {camera}, poses, options, &r);
+    EXPECT_GT(r.frames[0].num_valid, 0);
+    for (int coordinate = 0; coordinate < 3; ++coordinate) {
+      for (const float bad : {NAN, INFINITY, -INFINITY}) {
+        PointCloud cloud = good;
+        cloud.positions[211][coordinate] = bad;
+        cloud.positions[250][0] = NAN;  // a later one is not reported
+        try {
+          RenderFramesInto(cloud, {camera}, poses, options, &r);
+          ADD_FAILURE() << "no error, mode " << ToString(c.mode);
+        } catch (const InputError& e) {
+          EXPECT_NE(std::string(e.what()).find(
+                        "render: point cloud: point 211 is not finite"),
+                    std::string::npos)
+              << e.what();
+        }
+      }
+    }
+    PointCloud short_colors = good;
+    short_colors.colors.resize(10);
+    short_colors.positions[5].x() = NAN;
+    try {
+      RenderFramesInto(short_colors, {camera}, poses, options, &r);
+      ADD_FAILURE() << "no error for 10 colours";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("'colors' has 10 entries"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(Renderer, MovingSetsBadInputIsAnError) {
   const PinholeCamera camera(60, 64, 44.0, 26.0, 80, 56);
   const std::vector<Rigid3d> poses(3);
