@@ -420,10 +420,12 @@ void Summarise(int64_t num_points,
 
 namespace {
 
-// RenderFramesInto and RenderFramesWithMovingSets after their static-cloud
-// check: validates the sets and hidden indices, packs everything once and
-// renders the frames.
+// RenderFramesInto and RenderFramesWithMovingSets after the check of their
+// static cloud's attributes (CheckAttributes): validates the sets and hidden
+// indices, packs everything once, testing the static positions as they are
+// packed (errors name the cloud `static_what`), and renders the frames.
 void RenderCheckedScene(const PointCloud& static_cloud,
+                        const std::string& static_what,
                         const std::vector<MovingPointSet>& sets,
                         const std::vector<size_t>& hidden_static,
                         const std::vector<PinholeCamera>& frame_cameras,
@@ -478,16 +480,16 @@ void RenderCheckedScene(const PointCloud& static_cloud,
   packed.Reserve(total, options);
   bool finite;
   if (static_footprints && !static_cloud.HasFootprints()) {
-    static_cloud.Check("render: point cloud");  // before the footprints
+    static_cloud.Check(static_what);  // before the footprints
     PointCloud with_footprints = static_cloud;
     SetCaptureFootprints(frame_cameras[0], cam_from_world[0], &with_footprints);
     finite = packed.Assign(0, with_footprints, options, true);
   } else {
     finite = packed.Assign(0, static_cloud, options, static_footprints);
   }
-  // RenderFramesInto checks the positions here, as they were packed: Check
-  // names the first point that is not finite.
-  if (!finite) static_cloud.Check("render: point cloud");
+  // The positions are checked here, as they were packed: Check names the
+  // first point that is not finite.
+  if (!finite) static_cloud.Check(static_what);
   std::vector<int> offsets(sets.size());
   for (size_t k = 0; k < sets.size(); ++k) {
     offsets[k] = static_cast<int>(packed.size());
@@ -552,8 +554,8 @@ void RenderFramesInto(const PointCloud& cloud_in_world,
   const std::vector<PinholeCamera> frame_cameras =
       CheckFrames(cameras, cam_from_world, options);
   CheckCloud(cloud_in_world);
-  RenderCheckedScene(cloud_in_world, {}, {}, frame_cameras, cam_from_world,
-                     options, start, result_out);
+  RenderCheckedScene(cloud_in_world, "render: point cloud", {}, {},
+                     frame_cameras, cam_from_world, options, start, result_out);
 }
 
 void RenderFramesWithMovingSets(const PointCloud& static_cloud,
@@ -566,9 +568,10 @@ void RenderFramesWithMovingSets(const PointCloud& static_cloud,
   const auto start = std::chrono::steady_clock::now();
   const std::vector<PinholeCamera> frame_cameras =
       CheckFrames(cameras, cam_from_world, options);
-  static_cloud.Check("render: static point cloud");
-  RenderCheckedScene(static_cloud, sets, hidden_static, frame_cameras,
-                     cam_from_world, options, start, result_out);
+  static_cloud.CheckAttributes("render: static point cloud");
+  RenderCheckedScene(static_cloud, "render: static point cloud", sets,
+                     hidden_static, frame_cameras, cam_from_world, options,
+                     start, result_out);
 }
 
 }  // namespace geodrive

@@ -647,6 +647,21 @@ TEST(Renderer, CloudThatIsNotFiniteIsAnError) {
                     std::string::npos)
               << e.what();
         }
+        // The same cloud as the static part of a scene with a moving set.
+        MovingPointSet set;
+        set.points = RandomOverlappingCloud(30);
+        set.world_from_set.assign(poses.size(), Rigid3d().ToMatrix3x4());
+        try {
+          RenderFramesWithMovingSets(cloud, {set}, {camera}, poses, options,
+                                     &r);
+          ADD_FAILURE() << "no error with a moving set, mode "
+                        << ToString(c.mode);
+        } catch (const InputError& e) {
+          EXPECT_NE(std::string(e.what()).find(
+                        "render: static point cloud: point 211 is not finite"),
+                    std::string::npos)
+              << e.what();
+        }
       }
     }
     PointCloud short_colors = good;
