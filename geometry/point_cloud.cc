@@ -50,8 +50,7 @@ void PointCloud::CheckAttributes(const std::string& what) const {
   for (float f : footprints) {
     uint32_t u;
     std::memcpy(&u, &f, sizeof u);
-    bad_footprint |=
-        (u >> 31) | static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
+    bad_footprint |= (u >> 31) | NotFiniteBit(f);
   }
   for (size_t i = 0; bad_footprint && i < footprints.size(); ++i) {
     GEODRIVE_CHECK_INPUT(std::isfinite(footprints[i]) && footprints[i] >= 0,
@@ -61,16 +60,11 @@ void PointCloud::CheckAttributes(const std::string& what) const {
 }
 
 bool PointCloud::AllPositionsFinite() const {
-  // A float is finite iff its exponent bits are not all ones.
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "packed positions");
   const size_t count = 3 * positions.size();
   const float* values = count ? positions[0].data() : nullptr;
   uint32_t bad = 0;
-  for (size_t k = 0; k < count; ++k) {
-    uint32_t u;
-    std::memcpy(&u, values + k, sizeof u);
-    bad |= static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
-  }
+  for (size_t k = 0; k < count; ++k) bad |= NotFiniteBit(values[k]);
   return bad == 0;
 }
 

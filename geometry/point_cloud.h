@@ -5,12 +5,21 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
 namespace geodrive {
 
 using Color3u8 = Eigen::Matrix<uint8_t, 3, 1>;  // RGB, 0..255
+
+// 1 when f is NaN or +-Inf (its exponent bits are all ones), else 0: a
+// branch-free test that vectorises, for scans over many values.
+inline uint32_t NotFiniteBit(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return static_cast<uint32_t>((u & 0x7f800000u) == 0x7f800000u);
+}
 
 struct PointCloud {
   // Point positions; the frame is the caller's (name the variable: points_in_world, ...).

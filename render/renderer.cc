@@ -75,8 +75,7 @@ bool PackedCloud::Assign(size_t offset,
   x.resize(n);
   y.resize(n);
   z.resize(n);
-  // The finiteness test rides on the copy (a float is finite iff its
-  // exponent bits are not all ones), so the positions are read once.
+  // The finiteness test rides on the copy, so the positions are read once.
   uint32_t not_finite = 0;
   for (size_t i = 0; i < m; ++i) {
     const float px = cloud.positions[i][0], py = cloud.positions[i][1],
@@ -84,13 +83,7 @@ bool PackedCloud::Assign(size_t offset,
     x[offset + i] = px;
     y[offset + i] = py;
     z[offset + i] = pz;
-    uint32_t bx, by, bz;
-    std::memcpy(&bx, &px, 4);
-    std::memcpy(&by, &py, 4);
-    std::memcpy(&bz, &pz, 4);
-    not_finite |= static_cast<uint32_t>((bx & 0x7f800000u) == 0x7f800000u) |
-                  static_cast<uint32_t>((by & 0x7f800000u) == 0x7f800000u) |
-                  static_cast<uint32_t>((bz & 0x7f800000u) == 0x7f800000u);
+    not_finite |= NotFiniteBit(px) | NotFiniteBit(py) | NotFiniteBit(pz);
   }
   const bool has_colors = cloud.HasColors();
   if (options.mode == RenderMode::kZBuffer) {
