@@ -625,28 +625,42 @@ __attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
     uint64_t* const kp = keys + p;
     const __m256i k0 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp));
     const __m256i k1 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp + 4));
+    const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
+    const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
+    const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
+    const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
+    const unsigned valid_bits = ~static_cast<unsigned>(_mm256_movemask_ps(
+                                    _mm256_castsi256_ps(invalid))) &
+                                0xffu;
     uint8_t* const out = rgb_out + 3 * p;
+    if (valid_bits == 0) {
+      // Eight empty pixels (sky, gaps between sparse points): black, zero
+      // depth and mask; their keys are already empty.
+      const __m128i zero = _mm_setzero_si128();
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out), zero);
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(out + 16), zero);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth_out + p),
+                          _mm256_setzero_si256());
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(mask_out + p), zero);
+      if (index_out) {
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(index_out + p), invalid);
+      }
+      continue;
+    }
     for (int i = 0; i < 8; ++i) {
       const uint32_t c = ColorOfKey(colors, kp[i]);
       std::memcpy(out + 3 * i, &c, 4);
     }
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp), empty);
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp + 4), empty);
-    const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
-    const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
-    const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
-    const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
-    const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth_out + p),
                         _mm256_andnot_si256(invalid, hi));
     if (index_out) {
+      const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(index_out + p),
                           _mm256_or_si256(lo, invalid));
     }
     // The eight mask bytes from the eight valid bits, through a table.
-    const unsigned valid_bits = ~static_cast<unsigned>(_mm256_movemask_ps(
-                                    _mm256_castsi256_ps(invalid))) &
-                                0xffu;
     std::memcpy(mask_out + p, &kMaskBytes.bytes[valid_bits], 8);
     valid += __builtin_popcount(valid_bits);
   }
