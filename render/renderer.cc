@@ -15,6 +15,10 @@
 #include <exception>
 #include <sstream>
 
+#ifdef __SSE2__
+#include <immintrin.h>
+#endif
+
 #include "geometry/util/status.h"
 #include "render/footprint.h"
 #include "render/internal/renderer_internal.h"
@@ -30,6 +34,7 @@ const Color3u8 kDefaultColor(200, 200, 200);
 #ifdef GEODRIVE_HAVE_AVX2_PATH
 std::atomic<bool> g_simd_enabled{true};
 #endif
+std::atomic<bool> g_culling_enabled{true};
 
 }  // namespace
 
@@ -112,6 +117,60 @@ bool PackedCloud::Assign(size_t offset,
   return not_finite == 0;
 }
 
+bool UseCulling() { return g_culling_enabled.load(std::memory_order_relaxed); }
+
+void ComputeCullBoxes(const std::vector<std::pair<int, int>>& segments,
+                      size_t g_begin,
+                      size_t g_end,
+                      PackedCloud* soa) {
+  const size_t n = soa->size();
+  const size_t groups = soa->cull_box_valid.size();
+  for (size_t g = g_begin; g < g_end; ++g) {
+    const size_t begin = g * kCullGroup,
+                 end = std::min(n, begin + size_t{kCullGroup});
+    bool one_frame = false;
+    for (const std::pair<int, int>& s : segments) {
+      one_frame |= begin >= static_cast<size_t>(s.first) &&
+                   end <= static_cast<size_t>(s.second);
+    }
+    soa->cull_box_valid[g] = one_frame;
+    const float* const coords[3] = {soa->x.data(), soa->y.data(),
+                                    soa->z.data()};
+    for (int c = 0; c < 3; ++c) {
+      const float* v = coords[c];
+      float lo = v[begin], hi = v[begin];
+      size_t i = begin;
+#ifdef __SSE2__
+      // Four running minima and maxima (x86-64 always has SSE; GCC does not
+      // vectorise a float min reduction without -ffast-math).
+      __m128 lo4 = _mm_set1_ps(lo), hi4 = lo4;
+      for (; i + 4 <= end; i += 4) {
+        const __m128 x = _mm_loadu_ps(v + i);
+        lo4 = _mm_min_ps(lo4, x);
+        hi4 = _mm_max_ps(hi4, x);
+      }
+      float l4[4], h4[4];
+      _mm_storeu_ps(l4, lo4);
+      _mm_storeu_ps(h4, hi4);
+      for (int l = 0; l < 4; ++l) {
+        lo = std::min(lo, l4[l]);
+        hi = std::max(hi, h4[l]);
+      }
+#endif
+      for (; i < end; ++i) {
+        lo = std::min(lo, v[i]);
+        hi = std::max(hi, v[i]);
+      }
+      // Centre and half-width, exact in double.
+      const double mid = 0.5 * (double{lo} + double{hi});
+      const double half = 0.5 * (double{hi} - double{lo});
+      soa->cull_box[(2 * c) * groups + g] = mid;
+      soa->cull_box[(2 * c + 1) * groups + g] = half;
+      soa->cull_box[(6 + c) * groups + g] = std::abs(mid) + half;
+    }
+  }
+}
+
 #ifdef GEODRIVE_HAVE_AVX2_PATH
 bool UseAvx2() {
   static const bool has_avx2 = __builtin_cpu_supports("avx2");
@@ -123,13 +182,16 @@ bool UseAvx2() {
 
 namespace {
 
+using renderer_internal::ComputeCullBoxes;
 using renderer_internal::FrameProjector;
 using renderer_internal::HoleFillPass;
+using renderer_internal::kCullGroup;
 using renderer_internal::PackedCloud;
 using renderer_internal::ProjectedRange;
 using renderer_internal::RenderSoft;
 using renderer_internal::RenderZBuffer;
 using renderer_internal::Scratch;
+using renderer_internal::UseCulling;
 
 void AllocateOutputs(const RenderOptions& options, RenderedFrame* frame) {
   const int h = options.height, w = options.width;
@@ -204,6 +266,10 @@ void RenderOne(const PackedCloud& cloud,
 }
 
 }  // namespace
+
+bool SetRendererCullingEnabled(bool enabled) {
+  return g_culling_enabled.exchange(enabled);
+}
 
 bool SetRendererSimdEnabled(bool enabled) {
 #ifdef GEODRIVE_HAVE_AVX2_PATH
@@ -493,12 +559,37 @@ void RenderCheckedScene(const PointCloud& static_cloud,
                 sets[k].instance_id);
     }
   }
+  // Frustum culling boxes for the radius-0 path (renderer_internal.h), one
+  // segment per coordinate frame.
+  const bool cull = zbuffer && options.radius_px <= 0 && UseCulling();
+  std::vector<std::pair<int, int>> segments;
+  size_t num_groups = 0;
+  if (cull) {
+    segments.emplace_back(0, static_cast<int>(static_cloud.size()));
+    for (size_t k = 0; k < sets.size(); ++k) {
+      segments.emplace_back(
+          offsets[k], offsets[k] + static_cast<int>(sets[k].points.size()));
+    }
+    num_groups = (packed.size() + kCullGroup - 1) / kCullGroup;
+    packed.cull_box.resize(9 * num_groups);
+    packed.cull_box_valid.resize(num_groups);
+  }
   RenderResult& result = *result_out;
   result.frames.resize(num_frames);
   const int threads =
       options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
 #pragma omp parallel num_threads(std::min(threads, num_frames))
   {
+    if (cull) {
+      // 64 groups a chunk; the loop's barrier makes every box ready.
+      const int64_t chunks = static_cast<int64_t>((num_groups + 63) / 64);
+#pragma omp for schedule(static)
+      for (int64_t c = 0; c < chunks; ++c) {
+        ComputeCullBoxes(segments, 64 * c,
+                         std::min(num_groups, static_cast<size_t>(64 * c + 64)),
+                         &packed);
+      }
+    }
     // Scratch buffers persist per thread across calls (OpenMP reuses its
     // threads), so rendering many clips does not pay for fresh allocations and
     // page faults every time.

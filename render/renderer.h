@@ -227,6 +227,12 @@ uint64_t RenderedFrameBytes(const RenderOptions& options);
 // previous setting.
 bool SetRendererSimdEnabled(bool enabled);
 
+// Testing hook: enables or disables the frustum culling of point groups in the
+// radius-0 z-buffer path (on by default). Culling only skips points the
+// per-point test rejects, so the output is the same; returns the previous
+// setting.
+bool SetRendererCullingEnabled(bool enabled);
+
 // Throws InputError("<what>: ...") if the pose has NaN/Inf or a rotation that
 // is not orthonormal (quaternion norm off by more than `tol`).
 void CheckPose(const Rigid3d& pose, const std::string& what, double tol = 1e-6);

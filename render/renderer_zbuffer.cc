@@ -675,6 +675,49 @@ int64_t ResolveZBuffer(const ZResolveArgs& a) {
   return ResolveZScalar(a, 0);
 }
 
+// Radius 0 over one range, a block of at most kBlock points at a time
+// (ProjectPixelsAvx2 where available, ProjectBlock for the rest, then
+// SplatPoints), skipping the groups of points that `culled` marks (indexed
+// from the range's first group). Returns the number of points in the image.
+int64_t SplatRangeRadiusZero(const PackedCloud& soa,
+                             const ProjectedRange& range,
+                             const std::vector<uint8_t>& culled,
+                             int w,
+                             int h,
+                             ProjectedBlock* blk,
+                             uint64_t* kb) {
+  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
+  const int first_group = range.begin / kCullGroup;
+  const auto is_culled = [&](int i) {
+    return !culled.empty() && culled[i / kCullGroup - first_group];
+  };
+  int64_t projected = 0;
+  int base = range.begin;
+  while (base < range.end) {
+    if (is_culled(base)) {
+      base = std::min(range.end, (base / kCullGroup + 1) * kCullGroup);
+      continue;
+    }
+    // [base, end): points of groups that are not culled, at most kBlock.
+    int end = base;
+    while (end < range.end && end - base < kBlock && !is_culled(end))
+      end = std::min(range.end, (end / kCullGroup + 1) * kCullGroup);
+    const int m = std::min(end, base + kBlock) - base;
+    int k0 = 0, packed = 0;
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+    if (UseAvx2()) {
+      packed = static_cast<int>(ProjectPixelsAvx2<true>(
+          soa, base, m, range.proj, w, fw, fh, blk, &k0));
+      projected += packed;
+    }
+#endif
+    ProjectBlock(soa, base, m, range.proj, blk, k0);
+    projected += SplatPoints(blk, packed, k0, k0, m, base, w, fw, fh, kb);
+    base += m;
+  }
+  return projected;
+}
+
 }  // namespace
 
 // Z-buffer. Each pixel keeps the minimum key (z, index), so among equal depths
@@ -695,13 +738,26 @@ void RenderZBuffer(const PackedCloud& soa,
   if (keys.size() != npix + 1) keys.assign(npix + 1, kEmptyKey);
   uint64_t* kb = keys.data();
   ProjectedBlock& blk = scratch->block;
-  const float fw = static_cast<float>(w), fh = static_cast<float>(h);
   int64_t projected = 0;
   const float r = static_cast<float>(options.radius_px);
   const float max_magnification =
       static_cast<float>(options.max_footprint_magnification);
+  std::vector<uint8_t>& culled = scratch->culled;
   for (const ProjectedRange& range : ranges) {
     const bool footprints = range.footprint_scale > 0 && !soa.footprint.empty();
+    if (!footprints && r <= 0) {
+      // The groups of this range that lie outside the view.
+      culled.clear();
+      if (!soa.cull_box.empty() && UseCulling() && range.begin < range.end) {
+        const int g_begin = range.begin / kCullGroup,
+                  g_end = (range.end - 1) / kCullGroup + 1;
+        culled.resize(g_end - g_begin);
+        CullGroups(soa, MakeFrustumPlanes(range.proj, w, h), g_begin, g_end,
+                   culled.data());
+      }
+      projected += SplatRangeRadiusZero(soa, range, culled, w, h, &blk, kb);
+      continue;
+    }
     for (int base = range.begin; base < range.end; base += kBlock) {
       const int m = std::min(kBlock, range.end - base);
       if (footprints) {
@@ -730,19 +786,6 @@ void RenderZBuffer(const PackedCloud& soa,
             range.footprint_scale, range.proj, r, max_magnification, w, h, kb);
         continue;
       }
-      if (r <= 0) {
-        int k0 = 0, packed = 0;
-#ifdef GEODRIVE_HAVE_AVX2_PATH
-        if (UseAvx2()) {
-          packed = static_cast<int>(ProjectPixelsAvx2<true>(
-              soa, base, m, range.proj, w, fw, fh, &blk, &k0));
-          projected += packed;
-        }
-#endif
-        ProjectBlock(soa, base, m, range.proj, &blk, k0);
-        projected += SplatPoints(&blk, packed, k0, k0, m, base, w, fw, fh, kb);
-        continue;
-      }
       ProjectBlock(soa, base, m, range.proj, &blk);
       projected += SplatDisks(blk, m, base, r, w, h, kb);
     }
@@ -763,6 +806,106 @@ void RenderZBuffer(const PackedCloud& soa,
                     frame->mask.ptr<uint8_t>(),
                     need_index ? index.data() : nullptr};
   frame->num_valid = ResolveZBuffer(args);
+}
+
+// Why the margins are safe. The per-point test passes a point when, in
+// float, near < zc < far, 0 <= fu < W and 0 <= fv < H, with
+//   zc = ((r6 x + r7 y) + r8 z) + t2   (xc, yc likewise)
+//   fu = ((fx xc) (1 / zc) + cx) + 0.5  (fv likewise).
+// Each float sum or product there is within 4 eps (eps = 2^-24) of the exact
+// value relative to the sum of its terms' magnitudes: |zc_float - zc| <=
+// 4 eps Mz with Mz = |r6| |x| + |r7| |y| + |r8| |z| + |t2|. A passing point
+// has zc_float > near >= 0, and for zc > 0, fu < 0 exactly when
+//   L = fx xc + (cx + 0.5) zc < 0;
+// the float fu differs from L / zc by at most about 9 eps (|fx| Mx + (|cx| +
+// 0.5) Mz) / zc. L is linear in the point, so its maximum over a box is
+//   b + sum_j (a_j ctr_j + |a_j| hw_j)   (centre ctr, half-widths hw),
+// and Mx, Mz are at most sum_j |r_ij| (|ctr_j| + hw_j) + |t_i| over the box.
+// A box whose maximum of L is below -1e-5 (|fx| Mx + (|cx| + 0.5) Mz), 20
+// times the rounding, holds no point with fu >= 0. The near and far planes,
+// the image's other sides (fu >= W: fx xc + (cx + 0.5 - W) zc >= 0) and the
+// rows are alike. Each plane is one test: b + sum_j (a_j ctr_j + |a_j| hw_j +
+// m_j (|ctr_j| + hw_j)) <= 0, the margin's weights m_j folded in, computed in
+// double from the projector's floats.
+FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h) {
+  constexpr double kMargin = 1e-5;
+  FrustumPlanes out;
+  const auto row = [&](int i, int j) { return double{p.r[3 * i + j]}; };
+  const double t2 = p.t[2];
+  int n = 0;
+  // Sets plane n from the linear function a . X + b and the margin weights
+  // (m . |X| + m0): a box fails the test when its maximum of a . X + b plus
+  // the margin is <= 0.
+  const auto add = [&](const double* a, double b, const double* m, double m0) {
+    for (int j = 0; j < 3; ++j) {
+      out.a[n][j] = a[j];
+      out.abs_a[n][j] = std::abs(a[j]);
+      out.m[n][j] = kMargin * m[j];
+    }
+    out.b[n] = b + kMargin * m0;
+    ++n;
+  };
+  double a[3], m[3];
+  // Near: max(zc) - near + margin <= 0. Far: far - min(zc) + margin <= 0.
+  for (int j = 0; j < 3; ++j) {
+    a[j] = row(2, j);
+    m[j] = std::abs(row(2, j));
+  }
+  add(a, t2 - p.near, m, std::abs(t2));
+  for (double& v : a) v = -v;
+  add(a, p.far - t2, m, std::abs(t2));
+  // Columns (axis 0: fx, cx, W) and rows (axis 1: fy, cy, H). Side 0, before
+  // the first pixel: f x + (c + 0.5) z < 0; side 1, past the last one:
+  // f x + (c + 0.5 - size) z >= 0.
+  for (int axis = 0; axis < 2; ++axis) {
+    const double f = axis == 0 ? p.fx : p.fy;
+    const double c = axis == 0 ? p.cx : p.cy;
+    const double size = axis == 0 ? w : h;
+    const double t = p.t[axis];
+    for (int side = 0; side < 2; ++side) {
+      const double shift = c + 0.5 - (side ? size : 0.0);
+      const double weight = std::abs(c) + 0.5 + (side ? size : 0.0);
+      const double sign = side ? -1.0 : 1.0;
+      for (int j = 0; j < 3; ++j) {
+        a[j] = sign * (f * row(axis, j) + shift * row(2, j));
+        m[j] =
+            std::abs(f) * std::abs(row(axis, j)) + weight * std::abs(row(2, j));
+      }
+      add(a, sign * (f * t + shift * t2), m,
+          std::abs(f) * std::abs(t) + weight * std::abs(t2));
+    }
+  }
+  return out;
+}
+
+GEODRIVE_HOT_CLONES
+void CullGroups(const PackedCloud& soa,
+                const FrustumPlanes& planes,
+                int g_begin,
+                int g_end,
+                uint8_t* culled) {
+  const size_t groups = soa.cull_box_valid.size();
+  const double* box = soa.cull_box.data();
+  const double* ctr[3] = {box, box + 2 * groups, box + 4 * groups};
+  const double* hw[3] = {box + groups, box + 3 * groups, box + 5 * groups};
+  const double* mag[3] = {box + 6 * groups, box + 7 * groups, box + 8 * groups};
+  const int count = g_end - g_begin;
+  for (int k = 0; k < count; ++k) culled[k] = 0;
+  // Plane by plane, all groups at a time (the inner loop vectorises).
+  for (int n = 0; n < 6; ++n) {
+    const double b = planes.b[n];
+    const double* a = planes.a[n];
+    const double* abs_a = planes.abs_a[n];
+    const double* m = planes.m[n];
+    for (int k = 0; k < count; ++k) {
+      const int g = g_begin + k;
+      double s = b;
+      for (int j = 0; j < 3; ++j)
+        s += a[j] * ctr[j][g] + abs_a[j] * hw[j][g] + m[j] * mag[j][g];
+      culled[k] |= static_cast<uint8_t>(s <= 0);
+    }
+  }
+  for (int k = 0; k < count; ++k) culled[k] &= soa.cull_box_valid[g_begin + k];
 }
 
 // One hole-filling pass; returns the number of pixels filled.

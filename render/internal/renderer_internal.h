@@ -142,6 +142,14 @@ struct PackedCloud {
   std::vector<float> footprint_axes;  // 6 per point: footprint_u, footprint_v
                                       // (zeros = none); empty when no packed
                                       // cloud carries them
+  // Frustum culling (radius 0 without footprints): per group of kCullGroup
+  // points, the bounding box of their positions as nine arrays of one double
+  // per group (structure of arrays, so the plane tests vectorise): centre x,
+  // half-width x, centre y, half-width y, centre z, half-width z (exact in
+  // double), then |centre| + half-width for x, y, z. cull_box_valid: whether
+  // all the group's points share one coordinate frame. Empty: no culling.
+  std::vector<double> cull_box;
+  std::vector<uint8_t> cull_box_valid;
   size_t size() const { return x.size(); }
 
   // Capacity for n points (avoids re-allocating when sets are appended).
@@ -155,6 +163,44 @@ struct PackedCloud {
               const RenderOptions& options,
               bool with_footprints = false);
 };
+
+// Frustum culling of the radius-0 z-buffer path: groups of kCullGroup
+// consecutive packed points whose bounding box lies outside the view are not
+// projected. Consecutive points of pointmaps and LiDAR sweeps are neighbours in
+// space, so whole groups fall behind the camera or beside the image.
+constexpr int kCullGroup = 256;
+
+// Fills soa->cull_box and cull_box_valid for groups [g_begin, g_end) (sized
+// by the caller). `segments` are the packed ranges that share one coordinate
+// frame (the static cloud, each moving set); a group that spans two of them
+// is never culled.
+void ComputeCullBoxes(const std::vector<std::pair<int, int>>& segments,
+                      size_t g_begin,
+                      size_t g_end,
+                      PackedCloud* soa);
+
+// The view of a projector and a w x h image as six plane tests on a box
+// (MakeFrustumPlanes, renderer_zbuffer.cc): near, far, before the first and
+// past the last column, likewise rows.
+struct FrustumPlanes {
+  double a[6][3], abs_a[6][3], m[6][3], b[6];
+};
+FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h);
+
+// Sets culled[g - g_begin] for groups [g_begin, g_end) of soa: 1 when no
+// point of the group's box can pass the radius-0 path's per-point test, as
+// all of it lies before the near plane, beyond the far plane or beyond one
+// side of the image by a margin (1e-5 of the magnitudes involved) at least 20x
+// the float rounding of the per-point computation. Culling therefore never
+// changes the output. Groups whose box is not valid are not culled.
+void CullGroups(const PackedCloud& soa,
+                const FrustumPlanes& planes,
+                int g_begin,
+                int g_end,
+                uint8_t* culled);
+
+// Whether RenderZBuffer culls (SetRendererCullingEnabled).
+bool UseCulling();
 
 // Projects points [base + k0, base + n) to shifted pixel coordinates (entries
 // k0..n-1 of `out`); ok = near < z < far.
@@ -222,6 +268,7 @@ struct Scratch {
   std::vector<int32_t> cand, order, order_tmp;   // soft: visible points
   std::vector<uint32_t> zbits, zbits_tmp, hist;  // soft: radix sort
   std::vector<int32_t> index;  // resolved point index per pixel (-1 = none)
+  std::vector<uint8_t> culled;  // zbuffer radius 0: groups outside the view
   // zbuffer, footprint splats: per point of a block its magnification, and
   // the magnified points' entries.
   std::array<float, kBlock> magnification;
