@@ -119,21 +119,12 @@ bool PackedCloud::Assign(size_t offset,
 
 bool UseCulling() { return g_culling_enabled.load(std::memory_order_relaxed); }
 
-void ComputeCullBoxes(const std::vector<std::pair<int, int>>& segments,
-                      size_t g_begin,
-                      size_t g_end,
-                      PackedCloud* soa) {
+void ComputeCullBoxes(size_t g_begin, size_t g_end, PackedCloud* soa) {
   const size_t n = soa->size();
-  const size_t groups = soa->cull_box_valid.size();
+  const size_t groups = (n + kCullGroup - 1) / kCullGroup;
   for (size_t g = g_begin; g < g_end; ++g) {
     const size_t begin = g * kCullGroup,
                  end = std::min(n, begin + size_t{kCullGroup});
-    bool one_frame = false;
-    for (const std::pair<int, int>& s : segments) {
-      one_frame |= begin >= static_cast<size_t>(s.first) &&
-                   end <= static_cast<size_t>(s.second);
-    }
-    soa->cull_box_valid[g] = one_frame;
     const float* const coords[3] = {soa->x.data(), soa->y.data(),
                                     soa->z.data()};
     for (int c = 0; c < 3; ++c) {
@@ -559,21 +550,10 @@ void RenderCheckedScene(const PointCloud& static_cloud,
                 sets[k].instance_id);
     }
   }
-  // Frustum culling boxes for the radius-0 path (renderer_internal.h), one
-  // segment per coordinate frame.
+  // Frustum culling boxes for the radius-0 path (renderer_internal.h).
   const bool cull = zbuffer && options.radius_px <= 0 && UseCulling();
-  std::vector<std::pair<int, int>> segments;
-  size_t num_groups = 0;
-  if (cull) {
-    segments.emplace_back(0, static_cast<int>(static_cloud.size()));
-    for (size_t k = 0; k < sets.size(); ++k) {
-      segments.emplace_back(
-          offsets[k], offsets[k] + static_cast<int>(sets[k].points.size()));
-    }
-    num_groups = (packed.size() + kCullGroup - 1) / kCullGroup;
-    packed.cull_box.resize(9 * num_groups);
-    packed.cull_box_valid.resize(num_groups);
-  }
+  const size_t num_groups = (packed.size() + kCullGroup - 1) / kCullGroup;
+  if (cull) packed.cull_box.resize(9 * num_groups);
   RenderResult& result = *result_out;
   result.frames.resize(num_frames);
   const int threads =
@@ -585,7 +565,7 @@ void RenderCheckedScene(const PointCloud& static_cloud,
       const int64_t chunks = static_cast<int64_t>((num_groups + 63) / 64);
 #pragma omp for schedule(static)
       for (int64_t c = 0; c < chunks; ++c) {
-        ComputeCullBoxes(segments, 64 * c,
+        ComputeCullBoxes(64 * c,
                          std::min(num_groups, static_cast<size_t>(64 * c + 64)),
                          &packed);
       }

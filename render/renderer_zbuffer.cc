@@ -884,7 +884,7 @@ void CullGroups(const PackedCloud& soa,
                 int g_begin,
                 int g_end,
                 uint8_t* culled) {
-  const size_t groups = soa.cull_box_valid.size();
+  const size_t groups = soa.cull_box.size() / 9;
   const double* box = soa.cull_box.data();
   const double* ctr[3] = {box, box + 2 * groups, box + 4 * groups};
   const double* hw[3] = {box + groups, box + 3 * groups, box + 5 * groups};
@@ -905,7 +905,6 @@ void CullGroups(const PackedCloud& soa,
       culled[k] |= static_cast<uint8_t>(s <= 0);
     }
   }
-  for (int k = 0; k < count; ++k) culled[k] &= soa.cull_box_valid[g_begin + k];
 }
 
 // One hole-filling pass; returns the number of pixels filled.

@@ -146,10 +146,11 @@ struct PackedCloud {
   // points, the bounding box of their positions as nine arrays of one double
   // per group (structure of arrays, so the plane tests vectorise): centre x,
   // half-width x, centre y, half-width y, centre z, half-width z (exact in
-  // double), then |centre| + half-width for x, y, z. cull_box_valid: whether
-  // all the group's points share one coordinate frame. Empty: no culling.
+  // double), then |centre| + half-width for x, y, z. A group may hold points
+  // of two ranges in different coordinate frames: its box then holds both,
+  // so it is culled for a range only when that range's own points in it are
+  // all outside. Empty: no culling.
   std::vector<double> cull_box;
-  std::vector<uint8_t> cull_box_valid;
   size_t size() const { return x.size(); }
 
   // Capacity for n points (avoids re-allocating when sets are appended).
@@ -170,14 +171,8 @@ struct PackedCloud {
 // space, so whole groups fall behind the camera or beside the image.
 constexpr int kCullGroup = 256;
 
-// Fills soa->cull_box and cull_box_valid for groups [g_begin, g_end) (sized
-// by the caller). `segments` are the packed ranges that share one coordinate
-// frame (the static cloud, each moving set); a group that spans two of them
-// is never culled.
-void ComputeCullBoxes(const std::vector<std::pair<int, int>>& segments,
-                      size_t g_begin,
-                      size_t g_end,
-                      PackedCloud* soa);
+// Fills soa->cull_box (sized by the caller) for groups [g_begin, g_end).
+void ComputeCullBoxes(size_t g_begin, size_t g_end, PackedCloud* soa);
 
 // The view of a projector and a w x h image as six plane tests on a box
 // (MakeFrustumPlanes, renderer_zbuffer.cc): near, far, before the first and
@@ -192,7 +187,7 @@ FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h);
 // all of it lies before the near plane, beyond the far plane or beyond one
 // side of the image by a margin (1e-5 of the magnitudes involved) at least 20x
 // the float rounding of the per-point computation. Culling therefore never
-// changes the output. Groups whose box is not valid are not culled.
+// changes the output.
 void CullGroups(const PackedCloud& soa,
                 const FrustumPlanes& planes,
                 int g_begin,

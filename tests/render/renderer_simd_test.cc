@@ -128,6 +128,123 @@ TEST(RendererSimd, RadiusZeroTailsBordersAndPlanesMatchScalar) {
   }
 }
 
+// Points in groups of 256 (the culling's groups) that each hug one side of
+// the view: the image's four sides and the near and far planes, at offsets
+// from 1e-2 down to a few float ulps on either side, so some groups lie just
+// outside and others hold points just inside.
+PointCloud BoundaryCloud(const PinholeCamera& camera, double near, double far) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double offsets[] = {-1e-2, -1e-4, -1e-6, -1e-7, 0.0, 1e-7, 1e-6, 1e-4};
+  PointCloud cloud;
+  for (int group = 0; group < 96; ++group) {
+    const int side = group % 6;
+    const double offset = offsets[(group / 6) % 8];
+    for (int i = 0; i < 256; ++i) {
+      // Pixel-centre coordinates u, v (border of pixel 0 at -0.5) and depth.
+      double u = -0.5 + (camera.width) * unit(rng);
+      double v = -0.5 + (camera.height) * unit(rng);
+      double z = near + (far - near) * unit(rng);
+      const double scale = i % 5 == 0 ? 1.0 : unit(rng);  // spread inward
+      switch (side) {
+        case 0:
+          u = -0.5 - offset * scale * 100;
+          break;
+        case 1:
+          u = camera.width - 0.5 + offset * scale * 100;
+          break;
+        case 2:
+          v = -0.5 - offset * scale * 100;
+          break;
+        case 3:
+          v = camera.height - 0.5 + offset * scale * 100;
+          break;
+        case 4:
+          z = near * (1 - offset * scale);
+          break;
+        default:
+          z = far * (1 + offset * scale);
+          break;
+      }
+      cloud.positions.emplace_back(
+          static_cast<float>((u - camera.cx) * z / camera.fx),
+          static_cast<float>((v - camera.cy) * z / camera.fy),
+          static_cast<float>(z));
+      cloud.colors.emplace_back(static_cast<uint8_t>(group),
+                                static_cast<uint8_t>(i), 7);
+    }
+  }
+  return cloud;
+}
+
+// Frustum culling skips groups of points whose box lies outside the view; it
+// must never skip a point the per-point test draws. Same bytes and counts
+// with culling on and off, on both kernels, for boxes hugging every side of
+// the view from a few ulps to 1e-2, seen from the capture pose and from moved
+// and rotated ones (world boxes then cut the view at an angle), and for a
+// moving set whose first points share a group with the static cloud's last
+// ones, in another coordinate frame (the box holds both).
+TEST(RendererSimd, CullingSkipsOnlyPointsThatAreNotDrawn) {
+  const PinholeCamera camera(52, 48, 31.5, 23.5, 64, 48);
+  const double near = 0.5, far = 40.0;
+  const PointCloud cloud = BoundaryCloud(camera, near, far);
+  std::vector<Rigid3d> poses = {Rigid3d()};
+  poses.push_back(Rigid3d(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.3, 0)),
+                          Eigen::Vector3d(0.5, 0, 0)));
+  poses.push_back(
+      Rigid3d(QuaternionFromAngleAxis(Eigen::Vector3d(0.02, -0.01, 0.7)),
+              Eigen::Vector3d(0, 0.2, -0.3)));
+  // A set of 300 points behind the camera in its own frame, moved 25 in
+  // front: the static cloud's last 16 points (behind the camera) share its
+  // group.
+  PointCloud statics;
+  for (int i = 0; i < 272; ++i) {
+    statics.positions.emplace_back(0.01f * i, 0.0f, -5.0f);
+    statics.colors.emplace_back(1, 2, 3);
+  }
+  MovingPointSet set;
+  for (int i = 0; i < 300; ++i) {
+    set.points.positions.emplace_back(0.02f * (i % 20) - 0.2f,
+                                      0.02f * (i / 20) - 0.15f, -10.0f);
+    set.points.colors.emplace_back(200, 100, static_cast<uint8_t>(i));
+  }
+  Matrix3x4d world_from_set = Matrix3x4d::Identity();
+  world_from_set(2, 3) = 25.0;
+  set.world_from_set.assign(poses.size(), world_from_set);
+  for (const bool simd : {true, false}) {
+    RenderOptions options;
+    options.width = camera.width;
+    options.height = camera.height;
+    options.near = near;
+    options.far = far;
+    options.output_index = true;
+    options.num_threads = 1;
+    const bool previous_simd = SetRendererSimdEnabled(simd);
+    const std::string what = simd ? "simd" : "scalar";
+    RenderResult culled, unculled;
+    RenderFramesInto(cloud, {camera}, poses, options, &culled);
+    bool previous = SetRendererCullingEnabled(false);
+    RenderFramesInto(cloud, {camera}, poses, options, &unculled);
+    SetRendererCullingEnabled(previous);
+    ExpectSameFrames(culled, unculled, what);
+    // Not vacuous: the boundary groups put points on both sides of the test.
+    EXPECT_GT(culled.frames[0].num_projected, 2000) << what;
+    EXPECT_LT(culled.frames[0].num_projected,
+              static_cast<int64_t>(cloud.size()) - 2000)
+        << what;
+    RenderResult with_set, with_set_unculled;
+    RenderFramesWithMovingSets(statics, {set}, {camera}, poses, options,
+                               &with_set);
+    previous = SetRendererCullingEnabled(false);
+    RenderFramesWithMovingSets(statics, {set}, {camera}, poses, options,
+                               &with_set_unculled);
+    SetRendererCullingEnabled(previous);
+    ExpectSameFrames(with_set, with_set_unculled, what + " moving set");
+    EXPECT_EQ(with_set.frames[0].num_projected, 300) << what;
+    SetRendererSimdEnabled(previous_simd);
+  }
+}
+
 // The resolve also resets the key buffer (tails included), so rendering again
 // into reused outputs, with the thread's scratch reused, gives the same bytes.
 TEST(RendererSimd, ReusedOutputsGiveTheSameBytes) {
