@@ -544,7 +544,7 @@ int64_t SplatDisks(const ProjectedBlock& blk,
 }
 
 // Z-buffer resolve: key -> RGB, depth, mask and optionally the point index;
-// every key is reset to empty. Colours are read at the key's low half + 1:
+// every key is left empty. Colours are read at the key's low half + 1:
 // point i's RGBX word is at [i + 1], and the empty key's low half (0xffffffff,
 // -1 as a signed 32-bit index) reads [0], black, so no pixel needs a validity
 // test to read its colour. Returns the number of valid pixels. The AVX2 version
@@ -601,7 +601,8 @@ struct MaskByteTable {
 constexpr MaskByteTable kMaskBytes;
 
 // Eight pixels at a time: the keys split into index and depth halves for the
-// depth, mask and index outputs; the colours read per pixel (scalar loads:
+// depth, mask and index outputs (a group of eight empty pixels only writes
+// zeros); the colours read per pixel (scalar loads:
 // on AMD Zen 4/5 a vpgatherdd took 60 % of this loop) and stored as
 // overlapping RGBX words, each X byte overwritten by the next pixel's R.
 __attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
@@ -833,9 +834,9 @@ FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h) {
   const auto row = [&](int i, int j) { return double{p.r[3 * i + j]}; };
   const double t2 = p.t[2];
   int n = 0;
-  // Sets plane n from the linear function a . X + b and the margin weights
-  // (m . |X| + m0): a box fails the test when its maximum of a . X + b plus
-  // the margin is <= 0.
+  // Sets plane n from the linear function a . X + b and the margin's weights
+  // (margin = kMargin (m . |X| + m0)): a box is outside the view when, for
+  // one plane, its maximum of a . X + b plus the margin is <= 0.
   const auto add = [&](const double* a, double b, const double* m, double m0) {
     for (int j = 0; j < 3; ++j) {
       out.a[n][j] = a[j];
