@@ -51,6 +51,71 @@ void PackedCloud::Reserve(size_t n, const RenderOptions& options) {
   if (options.output_instance) instance.reserve(n + 1);
 }
 
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+namespace {
+// Packs points [0, m - 9) eight at a time (the colour loads read 4 bytes
+// past the eighth colour): positions from x y z triples to the x, y, z
+// arrays, and with `colors` (else nullptr) RGB triples to RGBX words.
+// Returns how many points were packed (a multiple of 8); *not_finite is
+// nonzero when one of their coordinates is NaN or infinite.
+__attribute__((target("avx2"))) size_t PackAvx2(const float* xyz,
+                                                const uint8_t* colors,
+                                                size_t m,
+                                                float* x,
+                                                float* y,
+                                                float* z,
+                                                uint32_t* rgbx,
+                                                uint32_t* not_finite) {
+  // Of three vectors a, b, c holding points 0-7's 24 coordinates, each lane
+  // holds one x (and one y, one z) in exactly one of them: blend them, then
+  // put the lanes in point order.
+  const __m256i x_order = _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5);
+  const __m256i y_order = _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6);
+  const __m256i z_order = _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7);
+  const __m256 exponent = _mm256_castsi256_ps(_mm256_set1_epi32(0x7f800000));
+  const __m256i rgb_to_rgbx =
+      _mm256_setr_epi8(0, 1, 2, -1, 3, 4, 5, -1, 6, 7, 8, -1, 9, 10, 11, -1, 0,
+                       1, 2, -1, 3, 4, 5, -1, 6, 7, 8, -1, 9, 10, 11, -1);
+  __m256 bad = _mm256_setzero_ps();
+  size_t i = 0;
+  for (; i + 10 <= m; i += 8) {
+    const float* p = xyz + 3 * i;
+    const __m256 a = _mm256_loadu_ps(p), b = _mm256_loadu_ps(p + 8),
+                 c = _mm256_loadu_ps(p + 16);
+    // Lanes of x: a 0 3 6, b 1 4 7, c 2 5; y: c 0 3 6, a 1 4 7, b 2 5;
+    // z: b 0 3 6, c 1 4 7, a 2 5.
+    const __m256 xs = _mm256_blend_ps(_mm256_blend_ps(a, b, 0x92), c, 0x24);
+    const __m256 ys = _mm256_blend_ps(_mm256_blend_ps(a, b, 0x24), c, 0x49);
+    const __m256 zs = _mm256_blend_ps(_mm256_blend_ps(a, b, 0x49), c, 0x92);
+    // Where each point's coordinate now is: x of point k in lane x_order[k]
+    // (lane 0 holds x0, lane 1 x3, lane 2 x6, ...).
+    _mm256_storeu_ps(x + i, _mm256_permutevar8x32_ps(xs, x_order));
+    _mm256_storeu_ps(y + i, _mm256_permutevar8x32_ps(ys, y_order));
+    _mm256_storeu_ps(z + i, _mm256_permutevar8x32_ps(zs, z_order));
+    // NaN or infinite: all exponent bits set.
+    for (const __m256 v : {a, b, c}) {
+      bad =
+          _mm256_or_ps(bad, _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+                                _mm256_castps_si256(_mm256_and_ps(v, exponent)),
+                                _mm256_castps_si256(exponent))));
+    }
+    if (colors) {
+      // Colours 0-3 from bytes 0-11, colours 4-7 from bytes 12-23.
+      const uint8_t* q = colors + 3 * i;
+      const __m256i rgb = _mm256_inserti128_si256(
+          _mm256_castsi128_si256(
+              _mm_loadu_si128(reinterpret_cast<const __m128i*>(q))),
+          _mm_loadu_si128(reinterpret_cast<const __m128i*>(q + 12)), 1);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(rgbx + i),
+                          _mm256_shuffle_epi8(rgb, rgb_to_rgbx));
+    }
+  }
+  *not_finite = static_cast<uint32_t>(_mm256_movemask_ps(bad));
+  return i;
+}
+}  // namespace
+#endif
+
 bool PackedCloud::Assign(size_t offset,
                          const PointCloud& cloud,
                          const RenderOptions& options,
@@ -80,9 +145,29 @@ bool PackedCloud::Assign(size_t offset,
   x.resize(n);
   y.resize(n);
   z.resize(n);
+  const bool has_colors = cloud.HasColors();
+  const bool rgbx_words = options.mode == RenderMode::kZBuffer;
+  if (rgbx_words) {
+    rgbx.resize(n + 1);
+    rgbx[0] = 0;  // little-endian RGBX black: empty pixels read it
+  }
   // The finiteness test rides on the copy, so the positions are read once.
   uint32_t not_finite = 0;
-  for (size_t i = 0; i < m; ++i) {
+  size_t first = 0;  // points [0, first) packed by PackAvx2
+  static_assert(sizeof(Eigen::Vector3f) == 12 && sizeof(Color3u8) == 3,
+                "packed x y z floats and RGB bytes");
+#ifdef GEODRIVE_HAVE_AVX2_PATH
+  if (UseAvx2() && m > 0) {
+    first =
+        PackAvx2(cloud.positions[0].data(),
+                 rgbx_words && has_colors ? cloud.colors[0].data() : nullptr, m,
+                 x.data() + offset, y.data() + offset, z.data() + offset,
+                 rgbx_words ? rgbx.data() + 1 + offset : nullptr, &not_finite);
+  }
+#endif
+  // Without colours every point takes the default one, below.
+  const size_t first_color = rgbx_words && has_colors ? first : 0;
+  for (size_t i = first; i < m; ++i) {
     const float px = cloud.positions[i][0], py = cloud.positions[i][1],
                 pz = cloud.positions[i][2];
     x[offset + i] = px;
@@ -90,11 +175,8 @@ bool PackedCloud::Assign(size_t offset,
     z[offset + i] = pz;
     not_finite |= NotFiniteBit(px) | NotFiniteBit(py) | NotFiniteBit(pz);
   }
-  const bool has_colors = cloud.HasColors();
-  if (options.mode == RenderMode::kZBuffer) {
-    rgbx.resize(n + 1);
-    rgbx[0] = 0;  // little-endian RGBX black: empty pixels read it
-    for (size_t i = 0; i < m; ++i) {
+  if (rgbx_words) {
+    for (size_t i = first_color; i < m; ++i) {
       const Color3u8& c = has_colors ? cloud.colors[i] : kDefaultColor;
       rgbx[1 + offset + i] =
           uint32_t{c[0]} | (uint32_t{c[1]} << 8) | (uint32_t{c[2]} << 16);

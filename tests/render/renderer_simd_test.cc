@@ -245,6 +245,54 @@ TEST(RendererSimd, CullingSkipsOnlyPointsThatAreNotDrawn) {
   }
 }
 
+// The packed colours (AVX2: eight points at a time, a scalar tail) against
+// the cloud: every drawn pixel has the colour of the point its index names,
+// the default grey (200, 200, 200) when the cloud has no colours, and the
+// depth of that point; SIMD and scalar agree.
+TEST(RendererSimd, DrawnPixelsCarryTheirPointsColourAndDepth) {
+  const PinholeCamera camera(30, 28, 18.0, 11.0, 37, 23);
+  for (const bool with_colors : {true, false}) {
+    for (const int n : {9, 10, 17, 1029}) {
+      PointCloud cloud = EdgeCaseCloud(n, camera);
+      if (!with_colors) cloud.colors.clear();
+      RenderOptions options;
+      options.width = camera.width;
+      options.height = camera.height;
+      options.near = 1.0;
+      options.far = 30.0;
+      options.output_index = true;
+      const std::string what =
+          (with_colors ? "colours n " : "no colours n ") + std::to_string(n);
+      const bool previous = SetRendererSimdEnabled(true);
+      RenderResult simd;
+      RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &simd);
+      SetRendererSimdEnabled(false);
+      RenderResult scalar;
+      RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &scalar);
+      SetRendererSimdEnabled(previous);
+      ExpectSameFrames(simd, scalar, what);
+      const RenderedFrame& f = simd.frames[0];
+      int drawn = 0;
+      for (int y = 0; y < camera.height; ++y) {
+        for (int x = 0; x < camera.width; ++x) {
+          const int32_t i = f.index.at<int32_t>(y, x);
+          if (i < 0) continue;
+          ++drawn;
+          const cv::Vec3b rgb = f.rgb.at<cv::Vec3b>(y, x);
+          const Color3u8 want =
+              with_colors ? cloud.colors[i] : Color3u8(200, 200, 200);
+          ASSERT_EQ(rgb[0], want[0]) << what << " at " << x << "," << y;
+          ASSERT_EQ(rgb[1], want[1]) << what << " at " << x << "," << y;
+          ASSERT_EQ(rgb[2], want[2]) << what << " at " << x << "," << y;
+          ASSERT_EQ(f.depth.at<float>(y, x), cloud.positions[i].z())
+              << what << " at " << x << "," << y;
+        }
+      }
+      if (n == 1029) EXPECT_GT(drawn, 100) << what;
+    }
+  }
+}
+
 // The resolve also resets the key buffer (tails included), so rendering again
 // into reused outputs, with the thread's scratch reused, gives the same bytes.
 TEST(RendererSimd, ReusedOutputsGiveTheSameBytes) {
