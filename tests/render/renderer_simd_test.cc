@@ -129,9 +129,10 @@ TEST(RendererSimd, RadiusZeroTailsBordersAndPlanesMatchScalar) {
 }
 
 // Points in groups of 256 (the culling's groups) that each hug one side of
-// the view: the image's four sides and the near and far planes, at offsets
-// from 1e-2 down to a few float ulps on either side, so some groups lie just
-// outside and others hold points just inside.
+// the view, on either side of it: the image's four sides at offsets from 1
+// pixel down to 1e-5 pixel (about one float ulp at u = 64), the near and far
+// planes at relative offsets from 1e-2 down to 1e-7, and exactly on them; so
+// some groups lie just outside and others hold points just inside.
 PointCloud BoundaryCloud(const PinholeCamera& camera, double near, double far) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
