@@ -53,11 +53,12 @@ void PackedCloud::Reserve(size_t n, const RenderOptions& options) {
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
 namespace {
-// Packs points [0, m - 9) eight at a time (the colour loads read 4 bytes
-// past the eighth colour): positions from x y z triples to the x, y, z
-// arrays, and with `colors` (else nullptr) RGB triples to RGBX words.
-// Returns how many points were packed (a multiple of 8); *not_finite is
-// nonzero when one of their coordinates is NaN or infinite.
+// Packs the first of m points eight at a time while at least two more
+// follow (the colour loads read 4 bytes past the eighth colour): positions
+// from x y z triples to the x, y, z arrays, and with `colors` (else nullptr)
+// RGB triples to RGBX words. Returns how many points were packed (a multiple
+// of 8); *not_finite is nonzero when one of their coordinates is NaN or
+// infinite.
 __attribute__((target("avx2"))) size_t PackAvx2(const float* xyz,
                                                 const uint8_t* colors,
                                                 size_t m,
