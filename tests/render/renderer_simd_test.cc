@@ -147,25 +147,15 @@ PointCloud BoundaryCloud(const PinholeCamera& camera, double near, double far) {
       double v = -0.5 + (camera.height) * unit(rng);
       double z = near + (far - near) * unit(rng);
       const double scale = i % 5 == 0 ? 1.0 : unit(rng);  // spread inward
-      switch (side) {
-        case 0:
-          u = -0.5 - offset * scale * 100;
-          break;
-        case 1:
-          u = camera.width - 0.5 + offset * scale * 100;
-          break;
-        case 2:
-          v = -0.5 - offset * scale * 100;
-          break;
-        case 3:
-          v = camera.height - 0.5 + offset * scale * 100;
-          break;
-        case 4:
-          z = near * (1 - offset * scale);
-          break;
-        default:
-          z = far * (1 + offset * scale);
-          break;
+      // Sides 0-3: before the first / past the last column, then row;
+      // 4, 5: the near and far planes.
+      const double d = offset * scale;
+      if (side < 4) {
+        double& c = side < 2 ? u : v;
+        const double size = side < 2 ? camera.width : camera.height;
+        c = side % 2 == 0 ? -0.5 - d * 100 : size - 0.5 + d * 100;
+      } else {
+        z = side == 4 ? near * (1 - d) : far * (1 + d);
       }
       cloud.positions.emplace_back(
           static_cast<float>((u - camera.cx) * z / camera.fx),
@@ -289,7 +279,9 @@ TEST(RendererSimd, DrawnPixelsCarryTheirPointsColourAndDepth) {
               << what << " at " << x << "," << y;
         }
       }
-      if (n == 1029) EXPECT_GT(drawn, 100) << what;
+      if (n == 1029) {
+        EXPECT_GT(drawn, 100) << what;
+      }
     }
   }
 }
