@@ -59,6 +59,17 @@ PointCloud EdgeCaseCloud(int n, const PinholeCamera& camera) {
   return cloud;
 }
 
+// Options for EdgeCaseCloud: the camera's size, near = 1 and far = 30 (the
+// planes its points sit on).
+RenderOptions EdgeCaseOptions(const PinholeCamera& camera) {
+  RenderOptions options;
+  options.width = camera.width;
+  options.height = camera.height;
+  options.near = 1.0;
+  options.far = 30.0;
+  return options;
+}
+
 void ExpectSameFrames(const RenderResult& a,
                       const RenderResult& b,
                       const std::string& what) {
@@ -87,11 +98,7 @@ TEST(RendererSimd, RadiusZeroTailsBordersAndPlanesMatchScalar) {
   for (const int n : {1, 7, 8, 9, 517, 1029, 3001}) {
     const PointCloud cloud = EdgeCaseCloud(n, camera);
     for (const bool with_index : {false, true}) {
-      RenderOptions options;
-      options.width = camera.width;
-      options.height = camera.height;
-      options.near = 1.0;
-      options.far = 30.0;
+      RenderOptions options = EdgeCaseOptions(camera);
       options.output_index = with_index;
       options.num_threads = 1;
       const std::string what =
@@ -246,11 +253,7 @@ TEST(RendererSimd, DrawnPixelsCarryTheirPointsColourAndDepth) {
     for (const int n : {9, 10, 17, 1029}) {
       PointCloud cloud = EdgeCaseCloud(n, camera);
       if (!with_colors) cloud.colors.clear();
-      RenderOptions options;
-      options.width = camera.width;
-      options.height = camera.height;
-      options.near = 1.0;
-      options.far = 30.0;
+      RenderOptions options = EdgeCaseOptions(camera);
       options.output_index = true;
       const std::string what =
           (with_colors ? "colours n " : "no colours n ") + std::to_string(n);
@@ -291,11 +294,7 @@ TEST(RendererSimd, DrawnPixelsCarryTheirPointsColourAndDepth) {
 TEST(RendererSimd, ReusedOutputsGiveTheSameBytes) {
   const PinholeCamera camera(30, 28, 18.0, 11.0, 37, 23);
   const PointCloud cloud = EdgeCaseCloud(2000, camera);
-  RenderOptions options;
-  options.width = camera.width;
-  options.height = camera.height;
-  options.near = 1.0;
-  options.far = 30.0;
+  RenderOptions options = EdgeCaseOptions(camera);
   RenderResult first, reused;
   RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &first);
   RenderFramesInto(cloud, {camera}, {Rigid3d()}, options, &reused);
