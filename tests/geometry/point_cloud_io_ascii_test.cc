@@ -2,12 +2,14 @@
 // OpenMP's threads (files of 2 MB and more): the same cloud, and the same
 // error for the same bad line, on 1 thread as on 4; blank lines, CRLF line
 // ends, a leading '+', and both the fast layouts (float32 x y z, uchar
-// colours, packed rgb) and the general one (double positions).
+// colours, packed rgb) and the general one (double positions); and files of
+// 32 MiB and more, read in parts on several threads.
 
 #include <gtest/gtest.h>
 #include <omp.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <random>
 #include <string>
@@ -195,6 +197,34 @@ TEST(AsciiChunks, LargePcdSameCloudOnOneOrFourThreads) {
                     std::to_string(11 + rows.line_of.back() + 1) +
                     ": unexpected data after the last point ('1 2 3 4')");
   EXPECT_EQ(e4, e1);
+}
+
+// Files of 32 MiB and more are read in 16 MiB parts on OpenMP's threads
+// (FileReader::ReadInParallel): a binary PLY read from its first byte and an
+// ASCII PCD read on from after its header's first 64 KiB give the cloud that
+// was written, on 1 thread and on 4.
+TEST(AsciiChunks, FilesOf32MiBAndMoreReadInPartsGiveTheSameCloud) {
+  const std::string dir = test::MakeTempDir("large_file_parts");
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> pos(-80.f, 80.f);
+  PointCloud cloud;
+  const size_t n = 2400000;  // 15 bytes a point in binary PLY: 36 MB
+  for (size_t i = 0; i < n; ++i) {
+    cloud.positions.emplace_back(pos(rng), pos(rng), pos(rng));
+    cloud.colors.push_back(Color3u8(rng() % 256, rng() % 256, rng() % 256));
+  }
+  WritePly(dir + "/c.ply", cloud, /*binary=*/true);
+  ASSERT_GT(std::filesystem::file_size(dir + "/c.ply"), uint64_t{32} << 20);
+  ExpectSame(cloud, WithThreads(1, [&] { return ReadPly(dir + "/c.ply"); }));
+  ExpectSame(cloud, WithThreads(4, [&] { return ReadPly(dir + "/c.ply"); }));
+  PointCloud part;
+  part.positions.assign(cloud.positions.begin(),
+                        cloud.positions.begin() + 1000000);
+  part.colors.assign(cloud.colors.begin(), cloud.colors.begin() + 1000000);
+  WritePcd(dir + "/c.pcd", part, /*binary=*/false);
+  ASSERT_GT(std::filesystem::file_size(dir + "/c.pcd"), uint64_t{32} << 20);
+  ExpectSame(part, WithThreads(1, [&] { return ReadPcd(dir + "/c.pcd"); }));
+  ExpectSame(part, WithThreads(4, [&] { return ReadPcd(dir + "/c.pcd"); }));
 }
 
 }  // namespace
