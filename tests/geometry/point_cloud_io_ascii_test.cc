@@ -8,7 +8,10 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <charconv>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <random>
@@ -197,6 +200,100 @@ TEST(AsciiChunks, LargePcdSameCloudOnOneOrFourThreads) {
                     std::to_string(11 + rows.line_of.back() + 1) +
                     ": unexpected data after the last point ('1 2 3 4')");
   EXPECT_EQ(e4, e1);
+}
+
+// Float tokens in the many forms a text cloud can hold read as the float
+// std::from_chars gives, bit for bit: the readers take the short decimal form
+// through Clinger's fast path and must agree with the correctly rounded
+// result everywhere, including float midpoints (2^24 + 1 is halfway between
+// two floats), the ends of the normal range, exponents, signed zeros and
+// tokens too long for the fast path.
+TEST(AsciiChunks, FloatTokensReadAsFromCharsReadsThem) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::uniform_int_distribution<int> pow10(-40, 38), digits(1, 19);
+  std::vector<std::string> tokens = {"0",
+                                     "-0",
+                                     "0.0",
+                                     "-0.000",
+                                     "16777217",
+                                     "16777219",
+                                     "33554434",
+                                     "1.6777217e7",
+                                     "0.16777217e8",
+                                     "1.17549435e-38",
+                                     "1.1754944e-38",
+                                     "3.4028234e38",
+                                     "3.40282347e+38",
+                                     "1e-45",
+                                     "1.4e-45",
+                                     "7e-39",
+                                     "0.1",
+                                     "0.2",
+                                     "0.3",
+                                     "1e22",
+                                     "1e23",
+                                     "123456789012345678",
+                                     "1E5",
+                                     "00012.500",
+                                     "9007199254740993",
+                                     "2.5e-3",
+                                     "-7.038531e-26"};
+  char buf[64];
+  for (int k = 0; k < 60000; ++k) {
+    const double v = unit(rng) * std::pow(10.0, pow10(rng));
+    const int form = k % 4;
+    if (form == 0) {
+      std::snprintf(buf, sizeof buf, "%.*g", 1 + k % 9, v);
+    } else if (form == 1) {
+      std::snprintf(buf, sizeof buf, "%.*g", digits(rng), v);
+    } else if (form == 2) {
+      std::snprintf(buf, sizeof buf, "%.*f", k % 12, v * 1e-30);
+    } else {
+      // Midpoints between neighbouring floats, printed with 9-17 digits.
+      const float f = static_cast<float>(v);
+      const double mid =
+          0.5 * (static_cast<double>(f) +
+                 static_cast<double>(std::nextafter(f, HUGE_VALF)));
+      std::snprintf(buf, sizeof buf, "%.*g", 9 + k % 9, mid);
+    }
+    tokens.push_back(buf);
+  }
+  // Only tokens from_chars takes whole (the others are errors, tested
+  // elsewhere), three to a row.
+  std::vector<float> expected;
+  std::string text;
+  size_t n = 0;
+  for (size_t k = 0; k + 3 <= tokens.size(); k += 3) {
+    float v[3];
+    bool ok = true;
+    for (int j = 0; j < 3; ++j) {
+      const std::string& t = tokens[k + j];
+      const auto r = std::from_chars(t.data(), t.data() + t.size(), v[j]);
+      ok &= r.ec == std::errc() && r.ptr == t.data() + t.size();
+    }
+    if (!ok) continue;
+    expected.insert(expected.end(), v, v + 3);
+    text += tokens[k] + " " + tokens[k + 1] + " " + tokens[k + 2] + " 1 2 3\n";
+    ++n;
+  }
+  ASSERT_GT(n, size_t{15000});
+  const std::string path =
+      test::MakeTempDir("ascii_float_tokens") + "/tokens.ply";
+  test::WriteFile(path, PlyHeader(n, "float", false) + text);
+  for (int threads : {1, 4}) {
+    const PointCloud cloud =
+        WithThreads(threads, [&] { return ReadPly(path); });
+    ASSERT_EQ(cloud.size(), n);
+    for (size_t i = 0; i < n; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        uint32_t got, want;
+        std::memcpy(&got, &cloud.positions[i][j], 4);
+        std::memcpy(&want, &expected[3 * i + j], 4);
+        ASSERT_EQ(got, want) << "row " << i << " value " << j;
+      }
+    }
+  }
 }
 
 // Files of 32 MiB and more are read in 16 MiB parts on OpenMP's threads
