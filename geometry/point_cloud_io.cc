@@ -58,6 +58,10 @@ struct FileBuffer {
   const char* end() const { return bytes.get() + size; }
 };
 
+// OpenMP threads a reader spreads one file's work over: OpenMP's default
+// count, or 1 inside a parallel region (the caller already spreads its work).
+int ReaderThreads() { return omp_in_parallel() ? 1 : omp_get_max_threads(); }
+
 // A regular file read from its start into an uninitialised buffer (no zero
 // fill) as far as the reader needs (Buffer, ReadAll), then, where a reader
 // wants it, streamed on from an offset inside that buffer (Seek, ReadNext)
@@ -148,7 +152,7 @@ class FileReader {
   // time in one thread's read before the parse could start on all of them.
   bool ReadInParallel(char* dst, size_t n, uint64_t offset) {
     constexpr size_t kPart = size_t{16} << 20;
-    const int threads = omp_in_parallel() ? 1 : omp_get_max_threads();
+    const int threads = ReaderThreads();
     if (threads <= 1 || n < 2 * kPart) return Read(dst, n);
     const int64_t parts = static_cast<int64_t>((n + kPart - 1) / kPart);
     std::vector<int> errors(static_cast<size_t>(parts), 0);
@@ -1148,7 +1152,7 @@ uint64_t ParseAsciiRows(LineReader* reader,
                         const RowFn& row) {
   const char* begin = reader->position();
   const size_t bytes = static_cast<size_t>(end - begin);
-  const int threads = omp_in_parallel() ? 1 : omp_get_max_threads();
+  const int threads = ReaderThreads();
   constexpr size_t kMinChunk = size_t{1} << 20;
   if (threads <= 1 || bytes < 2 * kMinChunk || rows < 1024) {
     Line line;
