@@ -423,6 +423,19 @@ TEST(PointCloudIo, RealSweepSurvivesPlyAndPcd) {
   ExpectSameCloud(sweep, ReadPcd(dir + "/sweep.pcd"));
 }
 
+// The same real sweep as text: "%.9g" round-trips float32, so the ASCII
+// readers (their fast float path and from_chars behind it) must give the
+// sweep's positions and intensities exactly.
+TEST(PointCloudIo, RealSweepSurvivesAsciiPlyAndPcd) {
+  const std::string dir = test::MakeTempDir("pc_real_ascii");
+  const PointCloud sweep =
+      ReadNuscenesLidarBin(test::RealDataPath(kNuscenesSweep));
+  WritePly(dir + "/sweep.ply", sweep, /*binary=*/false);
+  ExpectSameCloud(sweep, ReadPly(dir + "/sweep.ply"));
+  WritePcd(dir + "/sweep.pcd", sweep, /*binary=*/false);
+  ExpectSameCloud(sweep, ReadPcd(dir + "/sweep.pcd"));
+}
+
 TEST(PointCloudIo, WritesLeaveNoTemporaries) {
   const std::string dir = test::MakeTempDir("pc_atomic");
   const PointCloud cloud = RandomCloud(10);
