@@ -663,6 +663,8 @@ void RenderCheckedScene(const PointCloud& static_cloud,
     // threads), so rendering many clips does not pay for fresh allocations and
     // page faults every time.
     thread_local Scratch scratch;
+    scratch.stream_outputs =
+        renderer_internal::StreamOutputs(options, num_frames);
     std::vector<ProjectedRange> ranges;
 #pragma omp for schedule(dynamic, 1)
     for (int f = 0; f < num_frames; ++f) {

@@ -600,15 +600,86 @@ struct MaskByteTable {
 };
 constexpr MaskByteTable kMaskBytes;
 
-// Eight pixels at a time: the keys split into index and depth halves for the
-// depth, mask and index outputs (a group of eight empty pixels only writes
-// zeros); the colours read per pixel (scalar loads:
-// on AMD Zen 4/5 a vpgatherdd took 60 % of this loop) and stored as
-// overlapping RGBX words, each X byte overwritten by the next pixel's R.
-__attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
-  const __m256i empty = _mm256_set1_epi64x(static_cast<long long>(kEmptyKey));
+// Eight pixels: the keys split into index and depth halves for the depth,
+// mask and index outputs (a group of eight empty pixels only writes zeros);
+// the colours read per pixel (scalar loads: on AMD Zen 4/5 a vpgatherdd took
+// 60 % of this loop) and stored as overlapping RGBX words, each X byte
+// overwritten by the next pixel's R, so `rgb` must have 25 writable bytes.
+// Every key is left empty. Returns the number of valid pixels.
+__attribute__((target("avx2"))) inline int Resolve8Avx2(uint64_t* kp,
+                                                        const uint32_t* colors,
+                                                        uint8_t* rgb,
+                                                        uint32_t* depth,
+                                                        uint8_t* mask,
+                                                        int32_t* index) {
   const __m256i even_odd = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
   const __m256i empty_hi = _mm256_set1_epi32(0x7fffffff);
+  const __m256i k0 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp));
+  const __m256i k1 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp + 4));
+  const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
+  const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
+  const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
+  const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
+  const unsigned valid_bits =
+      ~static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(invalid))) &
+      0xffu;
+  if (valid_bits == 0) {
+    // Eight empty pixels (sky, gaps between sparse points): black, zero
+    // depth and mask; their keys are already empty.
+    const __m128i zero = _mm_setzero_si128();
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(rgb), zero);
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(rgb + 16), zero);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth),
+                        _mm256_setzero_si256());
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(mask), zero);
+    if (index) {
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(index), invalid);
+    }
+    return 0;
+  }
+  for (int i = 0; i < 8; ++i) {
+    const uint32_t c = ColorOfKey(colors, kp[i]);
+    std::memcpy(rgb + 3 * i, &c, 4);
+  }
+  const __m256i empty = _mm256_set1_epi64x(static_cast<long long>(kEmptyKey));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp), empty);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp + 4), empty);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth),
+                      _mm256_andnot_si256(invalid, hi));
+  if (index) {
+    const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(index),
+                        _mm256_or_si256(lo, invalid));
+  }
+  // The eight mask bytes from the eight valid bits, through a table.
+  std::memcpy(mask, &kMaskBytes.bytes[valid_bits], 8);
+  return __builtin_popcount(valid_bits);
+}
+
+// Pixels per streamed block: a whole number of 64-byte lines of every output
+// (RGB 192 bytes, depth 256, mask 64).
+constexpr size_t kStreamBlock = 64;
+
+// Copies `bytes` (a multiple of 32) from the aligned `src` to the aligned
+// `dst` with streaming stores.
+__attribute__((target("avx2"))) inline void StreamOut(void* dst,
+                                                      const void* src,
+                                                      size_t bytes) {
+  for (size_t b = 0; b < bytes; b += 32) {
+    _mm256_stream_si256(
+        reinterpret_cast<__m256i*>(static_cast<uint8_t*>(dst) + b),
+        _mm256_load_si256(reinterpret_cast<const __m256i*>(
+            static_cast<const uint8_t*>(src) + b)));
+  }
+}
+
+// The AVX2 resolve from pixel 0. With `stream`, blocks of kStreamBlock pixels
+// are resolved into a staging block in L1 and written out in whole lines
+// with streaming stores (the outputs must be 32-byte aligned; they then are at
+// every block); the keys stay cached for the next frame. The bytes are those
+// of the ordinary stores.
+__attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a,
+                                                     bool stream) {
   // Locals, so that the byte stores below do not make the compiler reload
   // the arguments (uint8_t stores may alias anything).
   uint64_t* const keys = a.keys;
@@ -620,58 +691,40 @@ __attribute__((target("avx2"))) int64_t ResolveZAvx2(const ZResolveArgs& a) {
   const size_t npix = a.npix;
   int64_t valid = 0;
   size_t p = 0;
+  const auto aligned = [](const void* ptr) {
+    return reinterpret_cast<uintptr_t>(ptr) % 32 == 0;
+  };
+  if (stream && aligned(rgb_out) && aligned(depth_out) && aligned(mask_out)) {
+    alignas(32) uint8_t rgb_stage[3 * kStreamBlock + 32];
+    alignas(32) uint32_t depth_stage[kStreamBlock];
+    alignas(32) uint8_t mask_stage[kStreamBlock];
+    for (; p + kStreamBlock <= npix; p += kStreamBlock) {
+      for (size_t q = 0; q < kStreamBlock; q += 8) {
+        valid += Resolve8Avx2(keys + p + q, colors, rgb_stage + 3 * q,
+                              depth_stage + q, mask_stage + q,
+                              index_out ? index_out + p + q : nullptr);
+      }
+      StreamOut(rgb_out + 3 * p, rgb_stage, 3 * kStreamBlock);
+      StreamOut(depth_out + p, depth_stage, 4 * kStreamBlock);
+      StreamOut(mask_out + p, mask_stage, kStreamBlock);
+    }
+    // Streaming stores are weakly ordered: make them visible before the
+    // ordinary stores of the tail and before any other thread reads them.
+    _mm_sfence();
+  }
   // The last 4-byte RGB store reaches 1 byte past the 8 pixels: stop while 2
   // more pixels remain, the scalar tail does the rest.
   for (; p + 10 <= npix; p += 8) {
-    uint64_t* const kp = keys + p;
-    const __m256i k0 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp));
-    const __m256i k1 = _mm256_loadu_si256(reinterpret_cast<__m256i*>(kp + 4));
-    const __m256i s0 = _mm256_permutevar8x32_epi32(k0, even_odd);
-    const __m256i s1 = _mm256_permutevar8x32_epi32(k1, even_odd);
-    const __m256i hi = _mm256_permute2x128_si256(s0, s1, 0x31);  // z bits
-    const __m256i invalid = _mm256_cmpeq_epi32(hi, empty_hi);
-    const unsigned valid_bits = ~static_cast<unsigned>(_mm256_movemask_ps(
-                                    _mm256_castsi256_ps(invalid))) &
-                                0xffu;
-    uint8_t* const out = rgb_out + 3 * p;
-    if (valid_bits == 0) {
-      // Eight empty pixels (sky, gaps between sparse points): black, zero
-      // depth and mask; their keys are already empty.
-      const __m128i zero = _mm_setzero_si128();
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(out), zero);
-      _mm_storel_epi64(reinterpret_cast<__m128i*>(out + 16), zero);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth_out + p),
-                          _mm256_setzero_si256());
-      _mm_storel_epi64(reinterpret_cast<__m128i*>(mask_out + p), zero);
-      if (index_out) {
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(index_out + p), invalid);
-      }
-      continue;
-    }
-    for (int i = 0; i < 8; ++i) {
-      const uint32_t c = ColorOfKey(colors, kp[i]);
-      std::memcpy(out + 3 * i, &c, 4);
-    }
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp), empty);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(kp + 4), empty);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(depth_out + p),
-                        _mm256_andnot_si256(invalid, hi));
-    if (index_out) {
-      const __m256i lo = _mm256_permute2x128_si256(s0, s1, 0x20);  // indices
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(index_out + p),
-                          _mm256_or_si256(lo, invalid));
-    }
-    // The eight mask bytes from the eight valid bits, through a table.
-    std::memcpy(mask_out + p, &kMaskBytes.bytes[valid_bits], 8);
-    valid += __builtin_popcount(valid_bits);
+    valid += Resolve8Avx2(keys + p, colors, rgb_out + 3 * p, depth_out + p,
+                          mask_out + p, index_out ? index_out + p : nullptr);
   }
   return valid + ResolveZScalar(a, p);
 }
 #endif
 
-int64_t ResolveZBuffer(const ZResolveArgs& a) {
+int64_t ResolveZBuffer(const ZResolveArgs& a, bool stream) {
 #ifdef GEODRIVE_HAVE_AVX2_PATH
-  if (UseAvx2()) return ResolveZAvx2(a);
+  if (UseAvx2()) return ResolveZAvx2(a, stream);
 #endif
   return ResolveZScalar(a, 0);
 }
@@ -806,7 +859,24 @@ void RenderZBuffer(const PackedCloud& soa,
                     reinterpret_cast<uint32_t*>(frame->depth.ptr<float>()),
                     frame->mask.ptr<uint8_t>(),
                     need_index ? index.data() : nullptr};
-  frame->num_valid = ResolveZBuffer(args);
+  frame->num_valid = ResolveZBuffer(args, scratch->stream_outputs);
+}
+
+// The outputs of the frames of one call, in bytes, from which the resolve
+// writes them with streaming stores (RenderZBuffer). Ordinary stores first
+// read each output line into the cache (read for ownership): on the 2-vCPU
+// Xeon VM of docs/PERFORMANCE.md, 8.1 GB/s of 32-byte stores to a 69 MB
+// buffer against 19-21 GB/s streamed. Below this size the outputs may still
+// be in cache when the caller reads them, so they are stored normally.
+constexpr uint64_t kStreamOutputBytes = uint64_t{32} << 20;
+
+bool StreamOutputs(const RenderOptions& options, int num_frames) {
+  // Hole filling and the float RGB output read the frame right after the
+  // resolve: keep it in cache for them.
+  return options.mode == RenderMode::kZBuffer && !options.hole_fill &&
+         !options.output_float_rgb &&
+         static_cast<uint64_t>(num_frames) * RenderedFrameBytes(options) >=
+             kStreamOutputBytes;
 }
 
 // Why the margins are safe. The per-point test passes a point when, in

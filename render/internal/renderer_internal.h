@@ -268,7 +268,16 @@ struct Scratch {
   // the magnified points' entries.
   std::array<float, kBlock> magnification;
   std::array<int, kBlock> magnified;
+  // zbuffer: the resolve writes the outputs with streaming stores (set per
+  // call from StreamOutputs).
+  bool stream_outputs = false;
 };
+
+// Whether a call that renders `num_frames` frames writes their z-buffer
+// outputs with streaming stores: when together they exceed the caches
+// (32 MiB), so that the stores do not first read each output line
+// (renderer_zbuffer.cc, ResolveZAvx2). The bytes are the same either way.
+bool StreamOutputs(const RenderOptions& options, int num_frames);
 
 #ifdef GEODRIVE_HAVE_AVX2_PATH
 // Whether the AVX2 kernels run: the CPU has AVX2 and SetRendererSimdEnabled

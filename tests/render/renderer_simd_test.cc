@@ -302,5 +302,36 @@ TEST(RendererSimd, ReusedOutputsGiveTheSameBytes) {
   ExpectSameFrames(first, reused, "reused");
 }
 
+// A call whose outputs exceed 32 MiB (renderer_internal's
+// kStreamOutputBytes) writes them with streaming stores from an L1 staging
+// block, 64 pixels at a time; the frames must be those of single-frame calls
+// (ordinary stores) and of the scalar kernels. 1000 x 700 pixels leave a tail
+// of 32 pixels after the last whole block; the index output rides along.
+TEST(RendererSimd, StreamedOutputsGiveTheBytesOfOrdinaryStores) {
+  const PinholeCamera camera(800, 800, 499.5, 349.5, 1000, 700);
+  const PointCloud cloud = EdgeCaseCloud(300000, camera);
+  RenderOptions options = EdgeCaseOptions(camera);
+  options.output_index = true;
+  std::vector<Rigid3d> poses;
+  for (int f = 0; f < 4; ++f) {
+    poses.emplace_back(
+        QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.002 * f, 0.001 * f)),
+        Eigen::Vector3d(0.01 * f, 0, -0.05 * f));
+  }
+  ASSERT_GE(poses.size() * RenderedFrameBytes(options), uint64_t{32} << 20);
+  const RenderResult streamed = RenderFrames(cloud, {camera}, poses, options);
+  RenderResult single, scalar;
+  for (const Rigid3d& pose : poses) {
+    single.frames.push_back(RenderFrame(cloud, camera, pose, options));
+  }
+  const bool previous = SetRendererSimdEnabled(false);
+  scalar = RenderFrames(cloud, {camera}, poses, options);
+  SetRendererSimdEnabled(previous);
+  ExpectSameFrames(streamed, single, "streamed against single frames");
+  ExpectSameFrames(streamed, scalar, "streamed against scalar");
+  for (const RenderedFrame& frame : streamed.frames)
+    EXPECT_GT(frame.num_valid, 700000 / 10);
+}
+
 }  // namespace
 }  // namespace geodrive
