@@ -319,11 +319,12 @@ PinholeCamera FrameCamera(const PinholeCamera& camera,
 void RenderOne(const PackedCloud& cloud,
                const std::vector<ProjectedRange>& ranges,
                const RenderOptions& options,
+               bool stream_outputs,
                Scratch* scratch,
                RenderedFrame* frame) {
   AllocateOutputs(options, frame);
   if (options.mode == RenderMode::kZBuffer) {
-    RenderZBuffer(cloud, ranges, options, scratch, frame);
+    RenderZBuffer(cloud, ranges, options, stream_outputs, scratch, frame);
     if (options.hole_fill) {
       for (int it = 0; it < options.hole_fill_iterations; ++it) {
         const int64_t filled = HoleFillPass(options, &scratch->index, frame);
@@ -647,6 +648,8 @@ void RenderCheckedScene(const PointCloud& static_cloud,
   result.frames.resize(num_frames);
   const int threads =
       options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
+  const bool stream_outputs =
+      renderer_internal::StreamOutputs(options, num_frames);
 #pragma omp parallel num_threads(std::min(threads, num_frames))
   {
     if (cull) {
@@ -663,8 +666,6 @@ void RenderCheckedScene(const PointCloud& static_cloud,
     // threads), so rendering many clips does not pay for fresh allocations and
     // page faults every time.
     thread_local Scratch scratch;
-    scratch.stream_outputs =
-        renderer_internal::StreamOutputs(options, num_frames);
     std::vector<ProjectedRange> ranges;
 #pragma omp for schedule(dynamic, 1)
     for (int f = 0; f < num_frames; ++f) {
@@ -692,7 +693,8 @@ void RenderCheckedScene(const PointCloud& static_cloud,
                            cam_r * a->col(3) + cam_t, options),
             footprint_scale});
       }
-      RenderOne(packed, ranges, options, &scratch, &result.frames[f]);
+      RenderOne(packed, ranges, options, stream_outputs, &scratch,
+                &result.frames[f]);
     }
   }
   Summarise(static_cast<int64_t>(total - hidden_static.size()), start, &result);

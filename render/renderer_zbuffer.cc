@@ -780,6 +780,7 @@ GEODRIVE_HOT_CLONES
 void RenderZBuffer(const PackedCloud& soa,
                    const std::vector<ProjectedRange>& ranges,
                    const RenderOptions& options,
+                   bool stream_outputs,
                    Scratch* scratch,
                    RenderedFrame* frame) {
   const int w = options.width, h = options.height;
@@ -859,7 +860,7 @@ void RenderZBuffer(const PackedCloud& soa,
                     reinterpret_cast<uint32_t*>(frame->depth.ptr<float>()),
                     frame->mask.ptr<uint8_t>(),
                     need_index ? index.data() : nullptr};
-  frame->num_valid = ResolveZBuffer(args, scratch->stream_outputs);
+  frame->num_valid = ResolveZBuffer(args, stream_outputs);
 }
 
 // The outputs of the frames of one call, in bytes, from which the resolve

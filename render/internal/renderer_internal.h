@@ -268,9 +268,6 @@ struct Scratch {
   // the magnified points' entries.
   std::array<float, kBlock> magnification;
   std::array<int, kBlock> magnified;
-  // zbuffer: the resolve writes the outputs with streaming stores (set per
-  // call from StreamOutputs).
-  bool stream_outputs = false;
 };
 
 // Whether a call that renders `num_frames` frames writes their z-buffer
@@ -288,10 +285,12 @@ bool UseAvx2();
 // Renders one frame of `soa` (the points of `ranges`, each through its
 // projector) into `frame`, whose outputs are allocated. The z-buffer keeps the
 // per-pixel point index in scratch->index when hole filling or an index /
-// instance output needs it (renderer_zbuffer.cc).
+// instance output needs it (renderer_zbuffer.cc). With `stream_outputs`
+// (StreamOutputs) the resolve writes the outputs with streaming stores.
 void RenderZBuffer(const PackedCloud& soa,
                    const std::vector<ProjectedRange>& ranges,
                    const RenderOptions& options,
+                   bool stream_outputs,
                    Scratch* scratch,
                    RenderedFrame* frame);
 
