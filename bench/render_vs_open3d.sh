@@ -22,7 +22,13 @@
 # files; default /tmp/geodrive_bench_render), TASKSET (e.g. "taskset -c 0,1"),
 # AVX2_ONLY=1 (for machines with AVX-512: also keep glibc's string functions and
 # OpenCV's dispatch to AVX2; our renderer has no AVX-512 code, its AVX2 kernels
-# are chosen at run time).
+# are chosen at run time), ROUNDS (default 1: run ours and Open3D that many
+# times, alternating, and end with the median over the rounds of each side and
+# of each ratio; on a shared VM one round's ratio can be off by 20 % or more).
+#
+# Besides the ratios at equal thread counts, each round prints issue 23's own
+# pairing: ours on one thread against Open3D at its default (all cores; two
+# threads on the 2-vCPU machines of docs/PERFORMANCE.md).
 set -euo pipefail
 
 BUILD_DIR=${1:-build}
@@ -50,21 +56,27 @@ lscpu | grep -E "^Model name|^CPU\(s\)" || true
 echo "flags: $(grep -o -w -E 'avx2|avx512f|avx512bw|avx512vl' /proc/cpuinfo | sort -u | tr '\n' ' ')"
 echo "load: $(cut -d' ' -f1-3 /proc/loadavg)${GLIBC_TUNABLES:+; AVX2 only: $GLIBC_TUNABLES}"
 
+ROUNDS=${ROUNDS:-1}
 filter="mode:($(echo "$MODES" | tr ' ' '|'))/|TrafficFloor"
+DUMP=$GEODRIVE_BENCH_RENDER_DUMP
+rm -f "$DUMP"/round_*.json
+
+for ((round = 1; round <= ROUNDS; round++)); do
+if ((ROUNDS > 1)); then echo "== round $round of $ROUNDS ($(date -u +%H:%M:%S) UTC)"; fi
 echo "== ours ($BENCH, median of $REPS; wall and CPU time of the process)"
 $TASKSET "$BENCH" --benchmark_filter="$filter" --benchmark_min_time=1 \
   --benchmark_repetitions="$REPS" --benchmark_report_aggregates_only=true \
-  --benchmark_out="$GEODRIVE_BENCH_RENDER_DUMP/ours.json" --benchmark_out_format=json \
+  --benchmark_out="$DUMP/ours.json" --benchmark_out_format=json \
   2>/dev/null | grep -E "_median" || true
 
 echo "== Open3D (median of $REPS), and the ratio Open3D / ours (wall time, same thread count)"
 for threads in 1 2; do
-  OMP_NUM_THREADS=$threads $TASKSET /usr/bin/python3 - "$GEODRIVE_BENCH_RENDER_DUMP" "$REPS" "$threads" <<'EOF'
+  OMP_NUM_THREADS=$threads $TASKSET /usr/bin/python3 - "$DUMP" "$REPS" "$threads" "$round" <<'EOF'
 import json, os, statistics, sys, time
 import numpy as np
 import open3d as o3d
 
-d, reps, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+d, reps, threads, rnd = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 ours = {}
 for b in json.load(open(os.path.join(d, 'ours.json')))['benchmarks']:
     if b.get('aggregate_name') == 'median':
@@ -113,5 +125,44 @@ if key in ours:
           f'{ocov:>15.3f}{coverage:>8.3f}{floor_text}{wall / 20:>14.1f}')
 else:
     print(f'{threads:<8}{"-":>18}{wall:>12.1f} ({cpu:5.0f})')
+# This round's figures, for the pairing line and the medians over rounds.
+json.dump({'open3d_ms': wall, 'ours_ms': ours.get(key, (None,))[0], 'floor_ms': floor},
+          open(os.path.join(d, f'round_{rnd}_threads_{threads}.json'), 'w'))
 EOF
 done
+/usr/bin/python3 - "$DUMP" "$round" <<'EOF'
+import json, os, sys
+d, rnd = sys.argv[1], sys.argv[2]
+one = json.load(open(os.path.join(d, f'round_{rnd}_threads_1.json')))
+two = json.load(open(os.path.join(d, f'round_{rnd}_threads_2.json')))
+if one['ours_ms']:
+    print(f"issue 23's pairing: ours on 1 thread {one['ours_ms']:.1f} ms, Open3D at its default "
+          f"(2 threads) {two['open3d_ms']:.1f} ms: {two['open3d_ms'] / one['ours_ms']:.1f}x "
+          f"(20x needs {two['open3d_ms'] / 20:.1f} ms)")
+EOF
+done
+
+if ((ROUNDS > 1)); then
+  echo "== medians over $ROUNDS rounds (each round's figure is itself a median of $REPS)"
+  /usr/bin/python3 - "$DUMP" "$ROUNDS" <<'EOF'
+import json, os, statistics, sys
+d, rounds = sys.argv[1], int(sys.argv[2])
+r = {t: [json.load(open(os.path.join(d, f'round_{i}_threads_{t}.json')))
+         for i in range(1, rounds + 1)] for t in (1, 2)}
+med = statistics.median
+def col(t, k):
+    return [x[k] for x in r[t]]
+if all(col(1, 'ours_ms')) and all(col(2, 'ours_ms')):
+    for t in (1, 2):
+        ratios = [o / u for o, u in zip(col(t, 'open3d_ms'), col(t, 'ours_ms'))]
+        print(f'{t} thread(s) each: ours {med(col(t, "ours_ms")):.1f} ms, Open3D '
+              f'{med(col(t, "open3d_ms")):.1f} ms; ratio median {med(ratios):.1f}x '
+              f'(rounds: {", ".join(f"{x:.1f}" for x in ratios)})')
+    pairing = [o / u for o, u in zip(col(2, 'open3d_ms'), col(1, 'ours_ms'))]
+    print(f"issue 23's pairing (ours 1 thread, Open3D 2): median {med(pairing):.1f}x "
+          f'(rounds: {", ".join(f"{x:.1f}" for x in pairing)})')
+    if all(col(1, 'floor_ms')):
+        print(f'bytes only: {med(col(1, "floor_ms")):.1f} ms on 1 thread, '
+              f'{med(col(2, "floor_ms")):.1f} ms on 2')
+EOF
+fi
