@@ -67,7 +67,8 @@ echo "== ours ($BENCH, median of $REPS; wall and CPU time of the process)"
 $TASKSET "$BENCH" --benchmark_filter="$filter" --benchmark_min_time=1 \
   --benchmark_repetitions="$REPS" --benchmark_report_aggregates_only=true \
   --benchmark_out="$DUMP/ours.json" --benchmark_out_format=json \
-  2>/dev/null | grep -E "_median" || true
+  2>/dev/null | grep -E "_median|^BM_.*(mode|threads)" | grep -v -E "_(mean|stddev|cv)" \
+  | { if ((REPS > 1)); then grep "_median"; else cat; fi; } || true
 
 echo "== Open3D (median of $REPS), and the ratio Open3D / ours (wall time, same thread count)"
 for threads in 1 2; do
@@ -78,8 +79,12 @@ import open3d as o3d
 
 d, reps, threads, rnd = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 ours = {}
-for b in json.load(open(os.path.join(d, 'ours.json')))['benchmarks']:
-    if b.get('aggregate_name') == 'median':
+# The medians of the repetitions; with REPS=1 Google Benchmark writes no
+# aggregates, and the single run is the figure.
+benches = json.load(open(os.path.join(d, 'ours.json')))['benchmarks']
+want = 'aggregate' if any(b.get('run_type') == 'aggregate' for b in benches) else 'iteration'
+for b in benches:
+    if b.get('run_type') == want and (want == 'iteration' or b.get('aggregate_name') == 'median'):
         # run_name: BM_Render25Frames/mode:M/threads:T/min_time:.../...
         # or BM_TrafficFloor25Frames/threads:T/...
         parts = b['run_name'].split('/')
