@@ -12,6 +12,7 @@ PACKAGES=(
   libopenmpi-dev openmpi-bin
   python3 python3-numpy python3-jsonschema python3-skimage python3-scipy python3-opencv python3-open3d
   python3-dev pybind11-dev python3-pytest
+  chromium chromium-driver
 )
 if [[ "${GEODRIVE_WITH_TORCH:-0}" == "1" ]]; then
   PACKAGES+=(libtorch-dev python3-torch)
