@@ -1,7 +1,7 @@
 // The builder's frame path (dataset/frame_decode.h) on real files: for every
 // JPEG/PNG under the given folders, the present path (kDctScaled: decode at a
 // DCT scale + exact area resize) and the same choosing from every M/8 scale
-// (all_jpeg_scales) against the previous one (kFull: full decode +
+// (all_jpeg_scales) against the reference path (kFull: full decode +
 // cv::resize INTER_AREA), CPU time per frame (this thread's clock, best of
 // --repeat) and the PSNR of each output against kFull's. Figures:
 // docs/PERFORMANCE.md "Dataset builder". --per-frame also prints each file's

@@ -1,4 +1,4 @@
-// lidar-dense (issue 22): depth completion of a real frame-0 LiDAR depth image
+// lidar-dense: depth completion of a real frame-0 LiDAR depth image
 // and the whole scene source, on nuScenes scene-0916 (../shared/data/real, or
 // $GEODRIVE_REAL_DATA). Arguments: the working width (800 = the source's
 // default, 1600 = CAM_FRONT's full width).

@@ -1,5 +1,5 @@
 // SSIM + PSNR of 25 frame pairs at 480x720 (RGB uint8) on one thread -- the
-// issue's speed bar (<= 150 ms). Figures and the skimage ratio:
+// target of <= 150 ms. Figures and the skimage ratio:
 // docs/PERFORMANCE.md "Evaluation metrics". With GEODRIVE_BENCH_DUMP_FRAMES=DIR
 // the 25 frame pairs are also written to DIR/gt.npy and DIR/pred.npy (uint8,
 // 25 x 480 x 720 x 3) so that skimage can be timed on the same frames.

@@ -44,8 +44,7 @@ void BM_ReadImageRgbJpeg(benchmark::State& state) {
 }
 BENCHMARK(BM_ReadImageRgbJpeg)->Unit(benchmark::kMillisecond);
 
-// What ReadImageRgb did before: file read + cv::imdecode(IMREAD_COLOR) + BGR
-// to RGB.
+// The OpenCV route: file read + cv::imdecode(IMREAD_COLOR) + BGR to RGB.
 void BM_OpenCvImdecodeRgbJpeg(benchmark::State& state) {
   const std::string path = NuscenesJpeg();
   for (auto _ : state) {

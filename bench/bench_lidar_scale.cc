@@ -1,7 +1,7 @@
 // LiDAR depth-scale fit for one 25-frame clip (one sweep per frame): read
 // sweeps, project with the nuScenes chain, sample the 512x288 MonST3R depth,
-// robust fit per frame and per clip, align the trajectory. Target (issue: LiDAR
-// alignment): <= 200 ms on one core.
+// robust fit per frame and per clip, align the trajectory. Target: <= 200 ms
+// on one core.
 //
 //   cmake -S . -B build -DGEODRIVE_BUILD_BENCH=ON && cmake --build build
 //   --target bench_lidar_scale OMP_NUM_THREADS=1 taskset -c 0

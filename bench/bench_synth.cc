@@ -1,5 +1,5 @@
 // Benchmarks of the synthetic world (docs/PERFORMANCE.md). The argument is the
-// OpenMP thread count; the budget is one 25-frame 1600x900 clip
+// OpenMP thread count; the budget is one 25-frame 1600x900 clip
 // (CAM_FRONT JPEGs, LIDAR_TOP sweeps, tables, MonST3R folder) in <= 10 s on one
 // core:
 //   OMP_NUM_THREADS=1 ./bench_synth --benchmark_filter=Clip

@@ -3,9 +3,9 @@
 # ROUNDS times by each binary, alternating, one thread pinned to one core, and
 # each run's CPU seconds per clip by stage (the builder's own "CPU per stage"
 # line, worker-thread CPU) and the process's CPU per clip (user + sys, start-up
-# and table loading included). On a shared VM the CPU time of one binary moved
-# by up to 1.9x within twenty minutes (December 2026), so only runs made side
-# by side compare; docs/PERFORMANCE.md "Dataset builder".
+# and table loading included). On a shared machine the CPU time of one binary
+# moved by up to 1.9x within twenty minutes, so only runs made side by side
+# compare; docs/PERFORMANCE.md "Dataset builder".
 #
 #   bash bench/builder_ab.sh OLD_GEODRIVE NEW_GEODRIVE [DATAROOT] [MONST3R]
 #

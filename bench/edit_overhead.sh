@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The 3D-editing overhead of docs/PERFORMANCE.md ("Dynamic editing"): runs
 # BM_PlainRender and BM_Edit3d of bench_edit alternately ROUNDS times (short
-# runs, so drifts in a shared VM's speed hit both alike) and prints the medians
+# runs, so drifts in a shared machine's speed hit both alike) and prints the medians
 # and their ratio, for one thread (pinned to CPU 1) and for two threads.
 #
 #   bench/edit_overhead.sh [BENCH_EDIT_BINARY] [ROUNDS]

@@ -19,9 +19,9 @@
 # defaults. REPS=1 measures each side's first load in a fresh process.
 # ROUNDS (default 1): run ours and the devkit that many times, alternating,
 # each in fresh processes, and add a line with the median over the rounds of
-# each side's best. On a shared VM a fresh python3 process's best-of-10 load of
-# the mini-size tables came out 0.21 s in some processes and 0.33-0.42 s in
-# others within one quiet minute (December 2026), so one round's ratio can be
+# each side's best. On a shared machine a fresh python3 process's best-of-10
+# load of the mini-size tables came out 0.21 s in some processes and
+# 0.33-0.42 s in others within one quiet minute, so one round's ratio can be
 # off by 1.7x either way; use ROUNDS=5 or more for a figure.
 set -euo pipefail
 

@@ -12,8 +12,8 @@
 # /tmp/geodrive_bench_point_cloud_io, about 0.9 GB), REPS (ours: benchmark
 # repetitions, each the mean of as many calls as fill half a second, the
 # best repetition taken; Open3D: the best of REPS single calls; default 3).
-# Until December 2026 ours was the median repetition against Open3D's best
-# call; on this shared VM the median moved a 3 ms read by 1.5x between runs.
+# Best against best: on a shared machine the median repetition of a 3 ms read
+# moved by 1.5x between runs.
 set -euo pipefail
 
 BUILD_DIR=${1:-build}

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The Python module's overhead, in one run (issue 20):
+# The Python module's overhead, in one run:
 #  1. render: geodrive.render() of the bench_render workload (25 frames at
 #     480x720 from 345,600 points, z-buffer r = 0; bench_render dumps its
 #     scene) against the C++ benchmark's own time, 1 and 2 threads. The

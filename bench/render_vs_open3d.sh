@@ -24,11 +24,11 @@
 # OpenCV's dispatch to AVX2; our renderer has no AVX-512 code, its AVX2 kernels
 # are chosen at run time), ROUNDS (default 1: run ours and Open3D that many
 # times, alternating, and end with the median over the rounds of each side and
-# of each ratio; on a shared VM one round's ratio can be off by 20 % or more).
+# of each ratio; on a shared machine one round's ratio can be off by 20 % or more).
 #
-# Besides the ratios at equal thread counts, each round prints issue 23's own
-# pairing: ours on one thread against Open3D on two threads (Open3D's default
-# on the 2-vCPU machines of docs/PERFORMANCE.md and of the issue).
+# Besides the ratios at equal thread counts, each round prints ours on one
+# thread against Open3D on two threads (Open3D's default on the 2-vCPU
+# machines of docs/PERFORMANCE.md).
 set -euo pipefail
 
 BUILD_DIR=${1:-build}
@@ -141,7 +141,7 @@ d, rnd = sys.argv[1], sys.argv[2]
 one = json.load(open(os.path.join(d, f'round_{rnd}_threads_1.json')))
 two = json.load(open(os.path.join(d, f'round_{rnd}_threads_2.json')))
 if one['ours_ms']:
-    print(f"issue 23's pairing: ours on 1 thread {one['ours_ms']:.1f} ms, Open3D on 2 threads "
+    print(f"ours on 1 thread against Open3D's default: ours {one['ours_ms']:.1f} ms, Open3D on 2 threads "
           f"{two['open3d_ms']:.1f} ms: {two['open3d_ms'] / one['ours_ms']:.1f}x "
           f"(20x needs {two['open3d_ms'] / 20:.1f} ms)")
 EOF
@@ -164,7 +164,7 @@ if all(col(1, 'ours_ms')) and all(col(2, 'ours_ms')):
               f'{med(col(t, "open3d_ms")):.1f} ms; ratio median {med(ratios):.1f}x '
               f'(rounds: {", ".join(f"{x:.1f}" for x in ratios)})')
     pairing = [o / u for o, u in zip(col(2, 'open3d_ms'), col(1, 'ours_ms'))]
-    print(f"issue 23's pairing (ours 1 thread, Open3D 2): median {med(pairing):.1f}x "
+    print(f"ours on 1 thread against Open3D on 2: median {med(pairing):.1f}x "
           f'(rounds: {", ".join(f"{x:.1f}" for x in pairing)})')
     if all(col(1, 'floor_ms')):
         print(f'bytes only: {med(col(1, "floor_ms")):.1f} ms on 1 thread, '

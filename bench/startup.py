@@ -1,10 +1,10 @@
 #!/usr/bin/python3
-"""Process start-up of `geodrive` (issue 23), with the peers measured in the same run.
+"""Process start-up of `geodrive`, with the peers measured in the same run.
 
 Runs each command RUNS times (after 3 warm-up runs) and prints the median and minimum wall time
 of the whole process (fork + exec + dynamic loading + static initialisers + the work), and how
 many shared libraries the executable and the commands plugin link (`ldd`). Peers: `python3 -c
-pass` (the issue's reference), NumPy loading the same .npy file and Open3D reading the same PLY
+pass` (the reference for a bare interpreter), NumPy loading the same .npy file and Open3D reading the same PLY
 (what a user would otherwise run to look at one; Open3D's import is most of its time).
 
 Usage: /usr/bin/python3 bench/startup.py BUILD_DIR [RUNS=50]
@@ -45,7 +45,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         small = os.path.join(tmp, "small.npy")
         np.save(small, np.arange(12, dtype=np.float32).reshape(3, 4))
-        # The issue's cloud: 345,600 points (a 480x720 pointmap), x y z float32 + r g b uchar,
+        # The benchmark cloud: 345,600 points (a 480x720 pointmap), x y z float32 + r g b uchar,
         # binary little-endian PLY.
         cloud = os.path.join(tmp, "cloud.ply")
         n = 480 * 720
