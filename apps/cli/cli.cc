@@ -5,6 +5,7 @@
 #include <iostream>
 #include <map>
 #include <new>
+#include <sstream>
 #include <stdexcept>
 
 #include "geometry/util/files.h"
@@ -17,6 +18,31 @@ std::vector<CommandSpec>& CommandRegistry() {
   static std::vector<CommandSpec> registry;
   return registry;
 }
+
+namespace {
+
+// The page docs/reference/<binary>.md: the top-level --help, then per
+// command its description and its --help, exactly as the command prints them
+// (CLI11 formats a subcommand's help with its parent's name as prefix).
+std::string CommandReferenceMarkdown(const CLI::App& app) {
+  const std::string name = app.get_name();
+  std::ostringstream os;
+  os << "# `" << name << "` command reference\n\n"
+     << "Generated from the command registry by `" << name << " "
+     << kHelpMarkdownFlag
+     << "` (`bash scripts/update_cli_reference.sh` rewrites it); the test "
+        "`apps/CliReference` fails when a command's `--help` and this page "
+        "differ.\n\n```text\n"
+     << app.help() << "```\n";
+  for (const CLI::App* sub : app.get_subcommands({})) {
+    os << "\n## `" << name << " " << sub->get_name() << "`\n\n"
+       << sub->get_description() << "\n\n```text\n"
+       << sub->help(name) << "```\n";
+  }
+  return os.str();
+}
+
+}  // namespace
 
 int RunCommandLine(const CliProgram& program, int argc, char** argv) {
   CLI::App app{program.description, program.name};
@@ -34,6 +60,10 @@ int RunCommandLine(const CliProgram& program, int argc, char** argv) {
     for (const auto& spec : registry) {
       CLI::App* sub = app.add_subcommand(spec.name, spec.description);
       runners[sub] = spec.setup(*sub);
+    }
+    if (argc == 2 && std::string(argv[1]) == kHelpMarkdownFlag) {
+      std::cout << CommandReferenceMarkdown(app);
+      return kExitOk;
     }
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

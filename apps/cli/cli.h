@@ -66,7 +66,15 @@ struct CliProgram {
 // "<name> [<command>]: error: ..." and returns 2; std::bad_alloc prints
 // "...: error: out of memory (...)" and returns 1; any other exception
 // "...: internal error: ..." and returns 1.
+//
+// `<name> --help-markdown` (the only argument; not listed in --help) prints
+// the command reference page in Markdown instead: the top-level --help and
+// every registered command's --help, byte for byte as `<name> <command>
+// --help` prints it (docs/reference/<name>.md is this output).
 int RunCommandLine(const CliProgram& program, int argc, char** argv);
+
+// The hidden flag that prints the command reference (see RunCommandLine).
+constexpr char kHelpMarkdownFlag[] = "--help-markdown";
 
 // An image size "HxW" (height first, e.g. 480x720, as every --size of both
 // binaries), each in 1..16384. Throws InputError naming `option`.
