@@ -11,7 +11,9 @@ set(GEODRIVE_DIFFUSION_CORE_SOURCES
   diffusion/vae_config.cc
   diffusion/vae.cc
   diffusion/runtime.cc)
-# The torch-free pieces the core uses (safetensors header parser, atomic file writes).
+# The torch-free pieces the core uses (safetensors header parser, atomic file writes, the
+# regular-file check of every reader).
 set(GEODRIVE_DIFFUSION_CORE_DEPENDENCY_SOURCES
   diffusion/format/safetensors_header.cc
-  geometry/util/files.cc)
+  geometry/util/files.cc
+  geometry/util/input_file.cc)

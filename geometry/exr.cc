@@ -9,11 +9,13 @@
 
 #include <exception>
 
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
 
 std::vector<std::string> ExrChannels(const std::string& path) {
+  CheckInputFile(path);  // OpenEXR opens the path itself
   try {
     Imf::InputFile file(path.c_str());
     std::vector<std::string> names;
@@ -30,6 +32,7 @@ cv::Mat ReadExr(const std::string& path,
                 const std::vector<std::string>& channels) {
   GEODRIVE_CHECK_INPUT(!channels.empty() && channels.size() <= 4, path,
                        ": read 1 to 4 channels");
+  CheckInputFile(path);
   try {
     Imf::InputFile file(path.c_str());
     const Imath::Box2i dw = file.header().dataWindow();

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <regex>
 #include <sstream>
@@ -14,6 +13,7 @@
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
 #include "geometry/trajectory_io.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -363,7 +363,7 @@ Monst3rFolder Monst3rFolder::Open(const std::string& dir) {
   } else if (fs::exists(focal_path)) {
     // pose_eval.py layout: one focal per line, principal point at the image
     // centre.
-    std::ifstream in(focal_path);
+    InputFileStream in(focal_path);
     std::string line;
     while (std::getline(in, line)) {
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "geometry/util/files.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -536,17 +537,29 @@ NpyArray NpyArray::Uint8(const std::vector<int64_t>& shape,
   return array;
 }
 
-NpyHeader ReadNpyHeader(const std::string& path) {
-  const uint64_t file_size = FileSizeOrThrow(path);
-  std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
+namespace {
+// `path` opened with OpenInputFile (a regular file, never blocking) as a
+// stdio stream; `*size` is its size.
+std::unique_ptr<std::FILE, FileCloser> OpenNpyFile(const std::string& path,
+                                                   uint64_t* size) {
+  InputFile input = OpenInputFile(path);
+  *size = input.size();
+  std::unique_ptr<std::FILE, FileCloser> file(::fdopen(input.fd(), "rb"));
   if (!file) ThrowOpenError(path, errno);
+  input.Release();  // the FILE owns the descriptor now
+  return file;
+}
+}  // namespace
+
+NpyHeader ReadNpyHeader(const std::string& path) {
+  uint64_t file_size = 0;
+  const auto file = OpenNpyFile(path, &file_size);
   return ReadHeader(path, file.get(), file_size);
 }
 
 NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options) {
-  const uint64_t file_size = FileSizeOrThrow(path);
-  std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
-  if (!file) ThrowOpenError(path, errno);
+  uint64_t file_size = 0;
+  const auto file = OpenNpyFile(path, &file_size);
   const NpyHeader header = ReadHeader(path, file.get(), file_size);
   const uint64_t nbytes = CheckedByteSize(path, header.shape, header.dtype);
   CheckDataSize(path, header, nbytes, file_size - header.data_offset, options);

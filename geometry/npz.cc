@@ -1,5 +1,6 @@
 #include "geometry/npz.h"
 
+#include <unistd.h>
 #include <zip.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <iterator>
 #include <regex>
 
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -88,6 +90,7 @@ struct NpzReader::Impl {
 
 NpzReader::NpzReader(const std::string& path) : impl_(new Impl) {
   impl_->path = path;
+  CheckInputFile(path);  // libzip opens the path itself
   int error = 0;
   impl_->archive = zip_open(path.c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &error);
   if (!impl_->archive) {
@@ -257,10 +260,14 @@ void WriteNpz(const std::string& path,
 }
 
 bool LooksLikeZip(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
   char magic[4] = {0, 0, 0, 0};
-  in.read(magic, 4);
-  return in.gcount() == 4 && std::memcmp(magic, "PK\x03\x04", 4) == 0;
+  try {
+    const InputFile in = OpenInputFile(path);  // false for a folder or FIFO
+    if (::pread(in.fd(), magic, 4, 0) != 4) return false;
+  } catch (const InputError&) {
+    return false;
+  }
+  return std::memcmp(magic, "PK\x03\x04", 4) == 0;
 }
 
 }  // namespace geodrive

@@ -37,6 +37,7 @@
 
 #include "geometry/internal/lzf_stream.h"
 #include "geometry/util/files.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -71,9 +72,9 @@ class FileReader {
  public:
   // Opens `path` and buffers its first `first_bytes` (or all of it).
   FileReader(const std::string& path, size_t first_bytes) : path_(path) {
-    size_ = FileSizeOrThrow(path);
-    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd_ < 0) ThrowOpenError(path, errno);
+    InputFile input = OpenInputFile(path);
+    size_ = input.size();
+    fd_ = input.Release();
     Buffer(std::min<uint64_t>(size_, first_bytes));
   }
   ~FileReader() { ::close(fd_); }

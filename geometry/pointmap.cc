@@ -4,12 +4,12 @@
 
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 
 #include "geometry/npy.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -226,8 +226,7 @@ PointCloud ExtractPoints(const Pointmap& pm,
 PinholeCamera ReadIntrinsicsFile(const std::string& path,
                                  int width,
                                  int height) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, "cannot open intrinsics file");
+  InputFileStream in(path);
   std::vector<double> values;
   std::string token;
   while (in >> token) {

@@ -2,7 +2,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -10,6 +9,7 @@
 #include "geometry/reconstruction.h"
 #include "geometry/trajectory_io.h"
 #include "geometry/util/files.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/json_fields.h"
 #include "geometry/util/status.h"
 
@@ -24,7 +24,7 @@ using internal::JsonVector;
 
 Trajectory ReadTrajectoryJson(const std::string& path,
                               TrajectoryFileInfo* info) {
-  const json root = internal::ReadJsonObjectFile(path, "trajectory file");
+  const json root = internal::ReadJsonObjectFile(path);
   if (internal::JsonString(path, root, "format", "") != "geodrive-trajectory") {
     ThrowInputError(path, "\"format\" must be \"geodrive-trajectory\"");
   }
@@ -161,7 +161,7 @@ void WriteTrajectoryJson(const std::string& path,
 namespace {
 // Numbers on the first non-comment line of a text file (0 if none).
 size_t FirstRowColumns(const std::string& path) {
-  std::ifstream in(path);
+  InputFileStream in(path);
   std::string line;
   while (std::getline(in, line)) {
     const size_t first = line.find_first_not_of(" \t\r");

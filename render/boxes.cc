@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -182,7 +181,7 @@ void BoxSequences::Check(const std::string& what) const {
 }
 
 BoxSequences ReadBoxesJson(const std::string& path) {
-  const json root = internal::ReadJsonObjectFile(path, "boxes file");
+  const json root = internal::ReadJsonObjectFile(path);
   CheckKeys(path, root, "top level",
             {"format", "version", "image_width", "image_height", "num_frames",
              "units", "instances", "description"});

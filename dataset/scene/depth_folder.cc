@@ -78,8 +78,7 @@ class DepthFolderSceneSource : public SceneSource {
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {
     const std::string json_path = in.path + "/cameras.json";
-    const nlohmann::json root =
-        internal::ReadJsonObjectFile(json_path, "cameras file");
+    const nlohmann::json root = internal::ReadJsonObjectFile(json_path);
     const nlohmann::json& frames = root.value("frames", nlohmann::json());
     if (!frames.is_array() || frames.empty())
       ThrowInputError(json_path, "\"frames\" must be a non-empty array");

@@ -19,12 +19,12 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "geometry/exr.h"
 #include "geometry/image_io.h"
 #include "geometry/reconstruction/common.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -141,8 +141,8 @@ class MogeReader : public ReconstructionReader {
     if (!fitted) {
       const std::string fov_path = path + "/fov.json";
       nlohmann::json j;
+      InputFileStream in(fov_path);
       try {
-        std::ifstream in(fov_path);
         j = nlohmann::json::parse(in);
       } catch (const std::exception& e) {
         ThrowInputError(fov_path, "not readable JSON: ", e.what());

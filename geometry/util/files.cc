@@ -15,49 +15,23 @@
 #include <filesystem>
 #include <memory>
 
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
 
 namespace fs = std::filesystem;
-namespace {
-
-struct FileCloser {
-  void operator()(std::FILE* f) const {
-    if (f) std::fclose(f);
-  }
-};
-using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
-
-}  // namespace
-
 void ThrowOpenError(const std::string& path, int errno_value) {
   ThrowInputError(path, "cannot open (", std::strerror(errno_value), ")");
 }
 
 uint64_t FileSizeOrThrow(const std::string& path) {
-  struct stat st;
-  if (::stat(path.c_str(), &st) != 0) ThrowOpenError(path, errno);
-  if (S_ISDIR(st.st_mode))
-    ThrowInputError(path, "is a directory (expected a file)");
-  if (!S_ISREG(st.st_mode)) ThrowInputError(path, "not a regular file");
-  return static_cast<uint64_t>(st.st_size);
+  return CheckInputFile(path);
 }
 
 std::vector<uint8_t> ReadFileBytes(const std::string& path,
                                    uint64_t max_bytes) {
-  const uint64_t size = FileSizeOrThrow(path);
-  if (size > max_bytes) {
-    ThrowInputError(path, "file of ", size, " bytes exceeds the limit of ",
-                    max_bytes, " bytes");
-  }
-  FilePtr file(std::fopen(path.c_str(), "rb"));
-  if (!file) ThrowOpenError(path, errno);
-  std::vector<uint8_t> bytes(size);
-  if (size > 0 && std::fread(bytes.data(), 1, size, file.get()) != size) {
-    ThrowInputError(path, "read error (file changed while reading?)");
-  }
-  return bytes;
+  return ReadInputFileBytes(path, max_bytes);
 }
 
 std::string ReadFileText(const std::string& path, uint64_t max_bytes) {

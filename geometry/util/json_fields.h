@@ -6,21 +6,19 @@
 
 #include <Eigen/Core>
 #include <cmath>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
 namespace internal {
 
-// The top-level JSON object of a file; `what` names the file kind in the
-// "cannot open" error ("trajectory file", "boxes file").
-inline nlohmann::json ReadJsonObjectFile(const std::string& path,
-                                         const std::string& what) {
-  std::ifstream in(path);
-  if (!in) ThrowInputError(path, "cannot open ", what);
+// The top-level JSON object of a file (opened with InputFileStream: a folder,
+// FIFO or device is refused naming the path).
+inline nlohmann::json ReadJsonObjectFile(const std::string& path) {
+  InputFileStream in(path);
   nlohmann::json root;
   try {
     root = nlohmann::json::parse(in);
