@@ -22,6 +22,7 @@
 #include "dataset/scene_folders.h"
 #include "dataset/scene_source.h"
 #include "geometry/util/files.h"
+#include "geometry/util/names.h"
 #include "geometry/util/hash.h"
 #include "geometry/util/progress.h"
 #include "geometry/util/status.h"
@@ -478,6 +479,18 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();
+  // Clip ids are folder names: plain (adapters make them with MakeClipId,
+  // whose scene part goes through PathComponentFromName) and unique.
+  {
+    std::set<std::string> seen;
+    for (const auto& c : clips) {
+      GEODRIVE_CHECK_INPUT(IsPlainPathComponent(c), opt.dataroot, ": clip id '",
+                           PathComponentFromName(c),
+                           "' (percent-encoded) is not a plain folder name");
+      GEODRIVE_CHECK_INPUT(seen.insert(c).second, opt.dataroot, ": clip id '",
+                           c, "' is listed twice");
+    }
+  }
   if (!opt.clips.empty()) clips = RequestedClips(std::move(clips), opt);
   std::map<std::string, int> clip_index;
   for (size_t i = 0; i < dataset->ClipIds().size(); ++i)
@@ -531,6 +544,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       std::string stage = "setup", error, error_log;
       PairQuality quality;
       try {
+        // The last guard: nothing is written outside --out.
+        CheckPathInside(final_dir, opt.out);
         fs::remove_all(tmp);
         fs::create_directories(tmp);
         const PairMeta meta = BuildPair(ctx, clip_id, tmp, &local_seconds);

@@ -8,9 +8,15 @@
 // Keyframe-only clips (2 Hz nuScenes samples) count the start in the scene's
 // keyframe chain and end in "_kf", e.g. "scene-0916_0006_kf". Stable across
 // runs: it depends only on the dataset contents.
+//
+// The scene name is data, and the clip id becomes a folder name: it goes
+// through PathComponentFromName (geometry/util/names.h), so "../x" or "a/b"
+// become "%2E.%2Fx" and "a%2Fb", and ordinary names stay as they are.
 
 #include <cstdio>
 #include <string>
+
+#include "geometry/util/names.h"
 
 namespace geodrive {
 
@@ -20,7 +26,7 @@ inline std::string MakeClipId(const std::string& scene_name,
                               bool keyframes = false) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "_%04d", start_index);
-  std::string id = scene_name + buf;
+  std::string id = PathComponentFromName(scene_name, "scene name") + buf;
   if (resample_rate_hz > 0) id += "_r" + std::to_string(resample_rate_hz);
   if (keyframes) id += "_kf";
   return id;

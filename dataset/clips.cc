@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <sstream>
 
 #include "dataset/clip_id.h"
@@ -120,10 +121,28 @@ std::vector<Clip> SelectClips(const Nuscenes& nusc,
                               const ClipOptions& options,
                               ClipSelectionSummary* summary) {
   std::vector<Clip> clips;
+  // Clip ids are unique per run: a scene whose name an earlier scene already
+  // has gets its clips named "<name>~<first 8 characters of its token>_..."
+  // (stable: it depends only on the tables), never the other scene's folder.
+  std::set<std::string> names_seen;
   for (size_t s = 0; s < nusc.scenes().size(); ++s) {
     auto scene_clips =
         SelectSceneClips(nusc, static_cast<int32_t>(s), options, summary);
+    const auto& scene = nusc.scenes()[s];
+    if (!names_seen.insert(scene.name).second) {
+      const std::string plain = PathComponentFromName(scene.name, "scene name");
+      // '~' never comes out of PathComponentFromName for a name's own bytes.
+      const std::string unique =
+          plain + "~" + scene.token.ToString().substr(0, 8);
+      for (auto& c : scene_clips) c.id = unique + c.id.substr(plain.size());
+    }
     for (auto& c : scene_clips) clips.push_back(std::move(c));
+  }
+  std::set<std::string> ids;
+  for (const auto& c : clips) {
+    GEODRIVE_CHECK_INPUT(ids.insert(c.id).second, "scene tables: clip id '",
+                         c.id, "' is produced by two scenes (two scenes share "
+                         "a name and a token prefix)");
   }
   return clips;
 }

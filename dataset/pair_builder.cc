@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "dataset/frame_decode.h"
@@ -526,16 +527,18 @@ int WriteUpstreamIndex(const std::string& out) {
                                    link, ec);
       GEODRIVE_CHECK_INPUT(!ec, link.string(), ": cannot create link (",
                            ec.message(), ")");
-      std::string line = "{\"gt_frames\": [";
-      for (size_t i = 0; i < m.frames.size(); ++i)
-        line += (i ? ", \"" : "\"") + m.frames[i].filename + "\"";
-      line += "], \"render_frames\": [";
+      // Through the JSON library: file names from the tables are data (a
+      // quote or a control byte in one is escaped, never written raw).
+      nlohmann::json j;
+      j["gt_frames"] = nlohmann::json::array();
+      j["render_frames"] = nlohmann::json::array();
       for (size_t i = 0; i < m.frames.size(); ++i) {
-        line += std::string(i ? ", \"" : "\"") + sample + "/render_" +
-                std::to_string(i) + ".png\"";
+        j["gt_frames"].push_back(m.frames[i].filename);
+        j["render_frames"].push_back(std::string(sample) + "/render_" +
+                                     std::to_string(i) + ".png");
       }
-      line +=
-          "], \"scene_idx\": " + std::to_string(*m.upstream_scene_idx) + "}";
+      j["scene_idx"] = *m.upstream_scene_idx;
+      const std::string line = j.dump();
       samples.emplace_back(*m.upstream_scene_idx, line);
     }
   }

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "geometry/util/files.h"
+#include "geometry/util/names.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -214,10 +215,8 @@ PairMeta ReadPairMeta(const std::string& pair_dir) {
 PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry) {
   const std::string& rel = entry.pair_dir;
   const std::string where = build_dir + "/manifest.jsonl";
-  GEODRIVE_CHECK_INPUT(
-      !rel.empty() && rel[0] != '/' && rel.find("..") == std::string::npos,
-      where, ": pair '", entry.clip_id, "' has pair_dir '", rel,
-      "' outside the build folder");
+  CheckRelativePathInside(rel, where + ": pair '" + entry.clip_id +
+                                   "' pair_dir");
   PairRecord r;
   r.entry = entry;
   r.dir = build_dir + "/" + rel;
@@ -278,6 +277,12 @@ ManifestEntry ManifestEntryFromJson(const std::string& line,
   } catch (const json::exception& ex) {
     ThrowInputError(what, "bad manifest line (", ex.what(), ")");
   }
+  // Both name folders and files of every reader (PairDataset, generate,
+  // eval): a plain clip id, a pair_dir inside the build folder.
+  GEODRIVE_CHECK_INPUT(IsPlainPathComponent(e.clip_id), what, ": clip_id '",
+                       PathComponentFromName(e.clip_id, what),
+                       "' (percent-encoded) is not a plain folder name");
+  CheckRelativePathInside(e.pair_dir, what + ": pair_dir");
   return e;
 }
 

@@ -805,6 +805,26 @@ void BindMetrics(py::module_& m) {
       },
       py::arg("path"), "The lines of a build's manifest.jsonl, as dicts.");
   m.def(
+      "read_pair",
+      [](const std::string& build_dir, const py::dict& entry) {
+        // The manifest line goes back through the C++ reader, so Python
+        // pairs pass the same checks as C++ ones (ReadPair: pair_dir inside
+        // the build, meta.json's clip id, listed files present).
+        const std::string line =
+            py::module_::import("json").attr("dumps")(entry).cast<std::string>();
+        const PairRecord r = ReadPair(
+            build_dir, ManifestEntryFromJson(line, build_dir + "/manifest.jsonl"));
+        py::dict out;
+        out["dir"] = r.dir;
+        out["gt_video"] = r.gt_video;
+        out["cond_video"] = r.cond_video;
+        out["num_frames"] = static_cast<int>(r.meta.frames.size());
+        return out;
+      },
+      py::arg("build_dir"), py::arg("entry"),
+      "Checks a manifest line's pair (ReadPair) and returns its folder, video "
+      "paths and frame count.");
+  m.def(
       "read_meta_json",
       [](const std::string& pair_dir) {
         return PairMetaToJson(ReadPairMeta(pair_dir));

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from . import read_manifest, read_video
+from ._core import read_pair
 
 __all__ = ["PairDataset"]
 
@@ -70,11 +71,19 @@ class PairDataset(torch.utils.data.Dataset):
 
     def __getitem__(self, i):
         e = self.entries[i]
-        pair = os.path.join(self.root, e["pair_dir"])
+        # The C++ reader's checks (pair_dir inside the build, meta.json's
+        # clip id, the listed videos present).
+        pair = read_pair(self.root, e)
         # The two videos decode at once (read_video releases the GIL); each
         # decode is single-threaded, so the frames are the same everywhere.
-        gt, cond = _pool().map(read_video, [os.path.join(pair, "gt.mp4"),
-                                            os.path.join(pair, "cond.mp4")])
+        gt, cond = _pool().map(read_video, [
+            os.path.join(pair["dir"], "gt.mp4"),
+            os.path.join(pair["dir"], "cond.mp4")])
+        for name, video in (("gt", gt), ("cond", cond)):
+            if video.shape[0] != pair["num_frames"]:
+                raise ValueError(
+                    "%s: %s video has %d frames, meta.json lists %d" % (
+                        pair["dir"], name, video.shape[0], pair["num_frames"]))
         return {
             "gt": _to_tensor(gt, self.size, self.frames),
             "cond": _to_tensor(cond, self.size, self.frames),
