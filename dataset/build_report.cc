@@ -215,9 +215,10 @@ struct PairRow {
   std::optional<PairMeta> meta;
   std::optional<double> psnr_mean;  // over the frames that have one
   std::optional<double> scale;      // metres per MonST3R unit
-  std::string scale_note;           // tooltip: the scale's source
+  std::string scale_note;           // tooltip where there is no scale
   std::string video_ratio;          // CSS aspect-ratio of the videos
-  std::string gt, cond, preview;    // URLs relative to OUT ("" = none)
+  // URLs relative to OUT ("" = none).
+  std::string gt, cond, preview, first_frame;
 };
 
 // The URL of a pair's file role when meta.json lists it and it exists.
@@ -277,13 +278,16 @@ ol.failures pre{white-space:pre-wrap;overflow-wrap:anywhere;background:#fbf0ef;b
 .card{border:1px solid var(--line);border-radius:6px;padding:10px}
 .vids{display:grid;grid-template-columns:repeat(auto-fit,minmax(280px,1fr));gap:8px}
 .vids video,.vids img{width:100%;height:auto;display:block;background:#000;border-radius:3px}
+nav{display:flex;flex-wrap:wrap;gap:4px 14px;font-size:.95em}
+.novideo{display:flex;align-items:center;justify-content:center;aspect-ratio:3/2;background:var(--soft);border-radius:3px;padding:8px;text-align:center}
+figure.strip{margin-top:8px}figure.strip img{width:100%;height:auto;display:block}
 .note{background:#fff6dc;border:1px solid #ecd9a0;border-radius:4px;padding:6px 10px}
 @media (max-width:600px){body{padding:10px;font-size:14px}th,td{padding:3px 6px}}
 )CSS";
 
 // Sorts the pair table by a column (numbers from data-v; rows without one
-// stay last in either direction; ties keep the clip order), and shows the
-// preview image where the browser cannot play the H.264 videos.
+// stay last in either direction; ties keep the clip order), and turns the
+// videos into links where the browser cannot play H.264.
 constexpr const char* kScript = R"JS(
 (function () {
   var table = document.getElementById('pair-table');
@@ -320,19 +324,27 @@ constexpr const char* kScript = R"JS(
       });
     });
   }
-  var probe = document.createElement('video');
-  var h264 = probe.canPlayType && probe.canPlayType('video/mp4; codecs="avc1.64001F"');
-  function still(video) {
-    var img = document.createElement('img');
-    img.src = video.getAttribute('poster');
-    img.alt = video.getAttribute('aria-label') || '';
-    video.parentNode.replaceChild(img, video);
+  // Videos the browser cannot play become links to their files.
+  function unplayable(video) {
+    var div = document.createElement('div');
+    div.className = 'novideo';
+    var link = document.createElement('a');
+    link.href = video.getAttribute('src');
+    link.textContent = video.getAttribute('aria-label') + ' (H.264 MP4)';
+    div.appendChild(document.createTextNode('Not playable here: '));
+    div.appendChild(link);
+    video.parentNode.replaceChild(div, video);
   }
-  var videos = Array.prototype.slice.call(document.querySelectorAll('video[poster]'));
-  if (!h264 && videos.length) {
-    videos.forEach(still);
-    var note = document.getElementById('codec-note');
-    if (note) note.hidden = false;
+  var videos = Array.prototype.slice.call(document.querySelectorAll('video'));
+  var probe = document.createElement('video');
+  if (!probe.canPlayType('video/mp4; codecs="avc1.42E01E"')) {
+    videos.forEach(unplayable);
+    if (videos.length) document.getElementById('codec-note').hidden = false;
+  } else {
+    videos.forEach(function (v) {
+      if (v.error) unplayable(v);
+      else v.addEventListener('error', function () { unplayable(v); });
+    });
   }
 })();
 )JS";
@@ -370,9 +382,13 @@ void WriteBuildReport(const std::string& out,
         completion_url = PairFileUrl(out, e, m, "completion_preview");
         if (!completion_url.empty()) completion_clip = e.clip_id;
       }
-      if (m.pose_units == "monst3r") {
+      // The LiDAR-fitted scale of MonST3R geometry; otherwise why none.
+      if (m.scale_source == "lidar") {
         r.scale = m.scale;
-        r.scale_note = "scale from " + m.scale_source;
+      } else if (m.pose_units == "monst3r") {
+        r.scale_note = "no metric scale: poses in MonST3R units";
+      } else {
+        r.scale_note = "metric geometry (" + m.scale_source + ")";
       }
       if (m.scale_source == "lidar") scales.push_back(m.scale);
       double sum = 0;
@@ -391,10 +407,12 @@ void WriteBuildReport(const std::string& out,
       r.gt = PairFileUrl(out, e, m, "gt");
       r.cond = PairFileUrl(out, e, m, "cond");
       r.preview = PairFileUrl(out, e, m, "preview");
+      r.first_frame = PairFileUrl(out, e, m, "first_frame");
     }
     rows.push_back(std::move(r));
   }
 
+  const bool has_time = summary && !summary->seconds_by_stage.empty();
   std::ostringstream os;
   os << "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
         "<meta name='viewport' content='width=device-width, initial-scale=1'>"
@@ -405,7 +423,11 @@ void WriteBuildReport(const std::string& out,
         "<code>"
      << Html(fs::absolute(out).lexically_normal().string())
      << "</code> &middot; geodrive " << Html(GEODRIVE_VERSION)
-     << "</p></header>\n";
+     << "</p><nav><a href='#counts'>counts</a> <a href='#quality'>quality</a> "
+        "<a href='#pairs'>pairs</a> <a href='#failures'>failures ("
+     << fails.size() << ")</a> <a href='#videos'>videos</a>"
+     << (has_time ? " <a href='#time'>time per stage</a>" : "")
+     << "</nav></header>\n";
 
   // Counts.
   auto stat = [&os](const std::string& id, const std::string& name,
@@ -444,34 +466,6 @@ void WriteBuildReport(const std::string& out,
   if (summary && summary->interrupted)
     os << "<p class='note'>The run was interrupted: rerun to resume.</p>";
   os << "</section>\n";
-
-  // Time per stage: wall and worker-thread CPU seconds (keys "cpu:<stage>",
-  // written by dataset/pair_builder.cc; the scale fit's CPU is inside
-  // geometry's), with each stage's share of the wall time.
-  if (summary && !summary->seconds_by_stage.empty()) {
-    const std::string cpu = "cpu:";
-    const auto& stages = summary->seconds_by_stage;
-    double wall_total = 0;
-    for (const auto& [s, t] : stages)
-      if (s.rfind(cpu, 0) != 0) wall_total += t;
-    os << "<section id='time'><h2>Time per stage</h2><p class='muted'>"
-          "Summed over clips (threads in parallel: the sum can exceed the run "
-          "time).</p><div class='scroll'><table><thead><tr><th>stage</th>"
-          "<th class='n'>wall</th><th class='n'>CPU</th><th>share of wall"
-          "</th></tr></thead><tbody>";
-    for (const auto& [s, t] : stages) {
-      if (s.rfind(cpu, 0) == 0) continue;
-      const auto c = stages.find(cpu + s);
-      const double share = wall_total > 0 ? t / wall_total : 0;
-      os << "<tr><th>" << Html(s) << "</th><td class='n'>" << Html(Seconds(t))
-         << "</td><td class='n'>"
-         << (c != stages.end() ? Html(Seconds(c->second)) : "—")
-         << "</td><td class='bar-cell' title='" << Fixed(100 * share, 1)
-         << " %'><span style='width:" << Fixed(100 * share, 1)
-         << "%'></span></td></tr>";
-    }
-    os << "</tbody></table></div></section>\n";
-  }
 
   // Quality.
   os << "<section id='quality'><h2>Quality</h2>";
@@ -543,12 +537,12 @@ void WriteBuildReport(const std::string& out,
       os << "<td class='n'>—</td>";
     }
     if (r.scale) {
-      os << "<td class='n' data-v='" << Short(*r.scale, 6) << "' title='"
-         << Html(r.scale_note) << "'>" << Fixed(*r.scale, 2) << " m/unit</td>";
-    } else if (r.meta) {
-      os << "<td class='n' title='poses in metres'>—</td>";
+      os << "<td class='n' data-v='" << Short(*r.scale, 6) << "'>"
+         << Fixed(*r.scale, 2) << " m/unit</td>";
     } else {
-      os << "<td class='n'>—</td>";
+      os << "<td class='n'";
+      if (!r.scale_note.empty()) os << " title='" << Html(r.scale_note) << "'";
+      os << ">—</td>";
     }
     os << "<td>—</td><td>";
     if (k < kMaxVideoCards && (!r.gt.empty() || !r.cond.empty())) {
@@ -602,7 +596,8 @@ void WriteBuildReport(const std::string& out,
   os << "</section>\n";
 
   // Each pair's ground truth and condition videos, side by side (stacked in
-  // a narrow window); the preview image is the poster and the fallback.
+  // a narrow window), over its preview strip (the fallback where the videos
+  // do not play).
   os << "<section id='videos'><h2>Ground truth and condition videos</h2>";
   const size_t cards = std::min(rows.size(), kMaxVideoCards);
   if (rows.size() > cards) {
@@ -610,44 +605,81 @@ void WriteBuildReport(const std::string& out,
        << rows.size()
        << " pairs (by clip id); the table links every pair's videos.</p>";
   }
-  os << "<p class='note' id='codec-note' hidden>This browser cannot play H.264 "
-        "video: each pair shows its preview image (ground truth row above "
-        "the condition row) instead.</p><div class='cards'>";
+  os << "<p class='note' id='codec-note' hidden>This browser cannot play "
+        "H.264 video: the players are replaced by links to the files; each "
+        "pair's preview strip shows its frames.</p><div class='cards'>";
   for (size_t k = 0; k < cards; ++k) {
     const PairRow& r = rows[k];
     if (r.gt.empty() && r.cond.empty()) continue;
-    os << "<article class='card' id='pair-" << k << "' data-clip='"
-       << Html(r.entry.clip_id) << "'><h3><code>" << Html(r.entry.clip_id)
-       << "</code> <span class='muted'>" << Html(r.entry.scene_name)
-       << " &middot; coverage " << Fixed(r.entry.mean_coverage, 3);
+    const std::string clip = Html(r.entry.clip_id);
+    os << "<article class='card' id='pair-" << k << "' data-clip='" << clip
+       << "'><h3><code>" << clip << "</code> <span class='muted'>"
+       << Html(r.entry.scene_name) << " &middot; " << r.entry.num_frames
+       << " frames &middot; coverage " << Fixed(r.entry.mean_coverage, 3);
     if (r.psnr_mean) os << " &middot; PSNR " << Fixed(*r.psnr_mean, 1) << " dB";
     os << "</span></h3><div class='vids'>";
-    for (const auto& [role, label, url] :
-         {std::tuple<std::string, std::string, std::string>(
-              "gt", "ground truth", r.gt),
-          {"cond", "condition", r.cond}}) {
+    for (const auto& [role, label, url, poster] :
+         {std::tuple<std::string, std::string, std::string, std::string>(
+              "gt", "ground truth", r.gt, r.first_frame),
+          {"cond", "condition", r.cond, ""}}) {
       os << "<figure>";
       if (url.empty()) {
         os << "<div class='muted'>no " << label << " video</div>";
       } else {
         os << "<video class='" << role
            << "' controls muted playsinline preload='metadata' src='" << url
-           << "' aria-label='" << label << " of " << Html(r.entry.clip_id)
-           << "'";
+           << "' aria-label='" << label << " of " << clip << "'";
         if (!r.video_ratio.empty())
           os << " style='aspect-ratio:" << r.video_ratio << "'";
-        if (!r.preview.empty()) os << " poster='" << r.preview << "'";
+        if (!poster.empty()) os << " poster='" << poster << "'";
         os << ">";
         if (!r.preview.empty())
-          os << "<img src='" << r.preview << "' alt='preview of "
-             << Html(r.entry.clip_id) << "'>";
+          os << "<img src='" << r.preview << "' alt='preview of " << clip
+             << "'>";
         os << "<a href='" << url << "'>" << label << " video</a></video>";
       }
       os << "<figcaption>" << label << "</figcaption></figure>";
     }
-    os << "</div></article>";
+    os << "</div>";
+    if (!r.preview.empty()) {
+      os << "<figure class='strip'><img loading='lazy' src='" << r.preview
+         << "' alt='preview of " << clip
+         << "'><figcaption>Every third frame: ground truth (top), condition "
+            "(bottom).</figcaption></figure>";
+    }
+    os << "</article>";
   }
-  os << "</div></section>\n<script>" << kScript << "</script></body></html>\n";
+  os << "</div></section>\n";
+
+  // Time per stage: wall and worker-thread CPU seconds (keys "cpu:<stage>",
+  // written by dataset/pair_builder.cc; the scale fit's CPU is inside
+  // geometry's), with each stage's share of the wall time.
+  if (has_time) {
+    const std::string cpu = "cpu:";
+    const auto& stages = summary->seconds_by_stage;
+    double wall_total = 0;
+    for (const auto& [s, t] : stages)
+      if (s.rfind(cpu, 0) != 0) wall_total += t;
+    os << "<section id='time'><h2>Time per stage</h2><p class='muted'>"
+          "Summed over clips (threads in parallel: the sum can exceed the run "
+          "time).</p><div class='scroll'><table><thead><tr><th>stage</th>"
+          "<th class='n'>wall</th><th class='n'>CPU</th><th>share of wall"
+          "</th></tr></thead><tbody>";
+    for (const auto& [s, t] : stages) {
+      if (s.rfind(cpu, 0) == 0) continue;
+      const auto c = stages.find(cpu + s);
+      const double share = wall_total > 0 ? t / wall_total : 0;
+      os << "<tr><th>" << Html(s) << "</th><td class='n'>" << Html(Seconds(t))
+         << "</td><td class='n'>"
+         << (c != stages.end() ? Html(Seconds(c->second)) : "—")
+         << "</td><td class='bar-cell' title='" << Fixed(100 * share, 1)
+         << " %'><span style='width:" << Fixed(100 * share, 1)
+         << "%'></span></td></tr>";
+    }
+    os << "</tbody></table></div></section>\n";
+  }
+
+  os << "<script>" << kScript << "</script></body></html>\n";
   WriteFileAtomic(out + "/report.html", os.str());
 }
 

@@ -31,7 +31,7 @@ import urllib.request
 CHROMIUM = os.environ.get("GEODRIVE_CHROMIUM", "/usr/bin/chromium")
 CHROMEDRIVER = os.environ.get("GEODRIVE_CHROMEDRIVER", "/usr/bin/chromedriver")
 SKIP = 77
-H264 = 'video/mp4; codecs="avc1.64001F"'
+H264 = 'video/mp4; codecs="avc1.42E01E"'
 failures = []
 
 
@@ -134,7 +134,7 @@ class WebDriver:
     def click(self, css):
         el = self.s("POST", "/element", {"using": "css selector",
                                           "value": css})
-        eid = el["element-6066-11e4-a52f-4a5d4c3b6e3e"]
+        eid = next(iter(el.values()))  # {"element-6066-…": id}
         self.s("POST", "/element/%s/click" % eid, {})
 
     def console(self):
@@ -146,8 +146,12 @@ class WebDriver:
             f.write(png)
         return len(png)
 
-    def window(self, width, height):
+    def viewport(self, width, height):
+        """Sizes the window so that the page's viewport is width x height."""
         self.s("POST", "/window/rect", {"width": width, "height": height})
+        inner = self.js("return [window.innerWidth, window.innerHeight]")
+        self.s("POST", "/window/rect", {"width": 2 * width - inner[0],
+                                        "height": 2 * height - inner[1]})
 
     def quit(self):
         try:
@@ -225,12 +229,30 @@ def check_demo_report(d, out, work):
     clips = [m["clip_id"] for m in manifest]
     check([r["clip"] for r in pair_rows] == clips,
           "every clip of the manifest has its row, in order")
-    for r, m in zip(pair_rows, manifest):
-        check(r["text"] == "%.3f" % m["mean_coverage"] and
-              abs(r["v"] - m["mean_coverage"]) < 1e-6,
-              "%s coverage shown %s (manifest %.6f)" % (m["clip_id"],
-                                                         r["text"],
-                                                         m["mean_coverage"]))
+    # Displayed values: coverage with 3 decimals, PSNR in dB, the LiDAR scale
+    # in m/unit, "—" where there is none (meta.json per pair).
+    cells = d.js("""
+      return Array.prototype.map.call(
+        document.querySelectorAll('#pair-table tr.pair-row'), function (tr) {
+          return Array.prototype.map.call(tr.cells, function (c) {
+            return [c.textContent, c.getAttribute('data-v')]; });
+        });""")
+    bad = []
+    for row, m in zip(cells, manifest):
+        meta = json.load(open(os.path.join(out, m["pair_dir"], "meta.json")))
+        psnr = [p for p in meta["quality"]["psnr_static"] if p is not None]
+        want_psnr = "%.1f dB" % (sum(psnr) / len(psnr)) if psnr else "—"
+        want_scale = ("%.2f m/unit" % meta["scale"]["value"]
+                      if meta["scale"]["source"] == "lidar" else "—")
+        want = [m["clip_id"], "%.3f" % m["mean_coverage"], want_psnr,
+                want_scale]
+        got = [row[0][0], row[4][0], row[5][0], row[6][0]]
+        if got != want or abs(float(row[4][1]) - m["mean_coverage"]) > 1e-6:
+            bad.append((got, want))
+    check(not bad, "coverage, PSNR and scale shown as 0.405, 23.3 dB, "
+          "1.23 m/unit (first row %s)%s" % (
+              [c[0] for c in cells[0]] if cells else None,
+              "; wrong: %s" % bad if bad else ""))
     # Sorting by coverage, then the other way.
     d.click("#sort-coverage button")
     check_sorted(d.js(ROWS_JS), False, "ascending by coverage")
@@ -252,7 +274,7 @@ def check_demo_report(d, out, work):
     check(len(hist) >= 2 and all(h["yticks"] >= 2 and h["xticks"] >= 2
                                  for h in hist if h["caption"]),
           "histograms have count and value ticks: %s" % hist)
-    # The videos of every pair: elements, sources, poster.
+    # The videos of every pair: elements, sources, poster, preview strip.
     vids = d.js("""
       return Array.prototype.map.call(document.querySelectorAll('article.card'),
         function (a) {
@@ -261,19 +283,26 @@ def check_demo_report(d, out, work):
             return e ? {src: e.getAttribute('src'),
                         poster: e.getAttribute('poster')} : null;
           }
+          var strip = a.querySelector('figure.strip img');
           return {clip: a.getAttribute('data-clip'), gt: v('gt'),
-                  cond: v('cond')};
+                  cond: v('cond'),
+                  strip: strip ? strip.getAttribute('src') : null};
         });""")
     check([v["clip"] for v in vids] == clips[:60],
           "a video card per pair (%d)" % len(vids))
+    bad = []
     for v, m in zip(vids, manifest):
         pd = m["pair_dir"]
         ok = (v["gt"] and v["cond"] and
               v["gt"]["src"] == pd + "/gt.mp4" and
               v["cond"]["src"] == pd + "/cond.mp4" and
-              v["gt"]["poster"] == pd + "/preview.png")
-        check(bool(ok), "%s: gt/cond videos with their sources: %s" % (
-            m["clip_id"], v))
+              v["gt"]["poster"] == pd + "/first_frame.png" and
+              v["strip"] == pd + "/preview.png")
+        if not ok:
+            bad.append(v)
+    check(not bad, "each card: gt.mp4 and cond.mp4 players, the first frame "
+          "as poster, preview.png strip (first %s)%s" % (
+              vids[0] if vids else None, "; wrong: %s" % bad if bad else ""))
     # H.264 playback: what the browser says, and the first video's metadata.
     can = d.js("return document.createElement('video').canPlayType(arguments[0])",
                H264)
@@ -307,18 +336,25 @@ def check_demo_report(d, out, work):
         check(played.get("t", 0) > 0, "the condition video plays")
     else:
         n = d.js("return [document.querySelectorAll('video').length,"
-                 " document.querySelectorAll('.card img').length,"
+                 " document.querySelectorAll('.card .novideo a').length,"
+                 " document.querySelectorAll('.card figure.strip img').length,"
                  " document.getElementById('codec-note').hidden]")
-        check(n[0] == 0 and n[1] == 2 * len(vids) and n[2] is False,
-              "no H.264: previews shown instead of the videos, with the note"
-              " (%s)" % n)
+        check(n[0] == 0 and n[1] == 2 * len(vids) and n[2] == len(vids) and
+              n[3] is False,
+              "no H.264: links instead of the players, the preview strips and"
+              " the note shown (%s)" % n)
     check_console(d, "demo report after playing")
     # Screenshots: the first screen at 1280x900, then a narrow window.
-    d.window(1280, 900)
+    d.viewport(1280, 900)
     d.js("window.scrollTo(0, 0)")
     size = d.screenshot(os.path.join(work, "report.png"))
     check(size > 10000, "screenshot report.png (%d bytes)" % size)
-    d.window(400, 900)
+    d.js("document.getElementById('pairs').scrollIntoView()")
+    d.screenshot(os.path.join(work, "report_pairs.png"))
+    d.js("document.getElementById('videos').scrollIntoView()")
+    d.screenshot(os.path.join(work, "report_videos.png"))
+    d.js("window.scrollTo(0, 0)")
+    d.viewport(400, 900)
     narrow = d.js("""
       var de = document.documentElement;
       var s = document.querySelector('#pairs .scroll');
@@ -333,7 +369,7 @@ def check_demo_report(d, out, work):
           "narrow window: no page-wide horizontal scroll, videos stacked (%s)"
           % narrow)
     d.screenshot(os.path.join(work, "report_narrow.png"))
-    d.window(1280, 900)
+    d.viewport(1280, 900)
 
 
 def check_failure_report(d, out):
@@ -362,6 +398,13 @@ def check_failure_report(d, out):
           "a table row per failed clip with its stage: %s" % got["rows"])
     check(got["items"] == want,
           "failures listed with clip, stage and message: %s" % got["items"])
+    # Failed clips have no coverage: last in either order.
+    for order in ("ascending", "descending"):
+        d.click("#sort-coverage button")
+        rows = d.js(ROWS_JS)
+        check([r["cls"] for r in rows][-len(fails):] == ["fail-row"] *
+              len(fails), "sorted %s by coverage, failed clips last: %s" % (
+                  order, [(r["clip"], r["v"]) for r in rows]))
 
 
 def main():
@@ -384,23 +427,28 @@ def main():
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     synth, out = os.path.join(work, "synth"), os.path.join(work, "pairs")
-    # The demo's data (scripts/demo.sh).
-    run([geodrive, "synth", "--out", synth, "--scenes", "2", "--seed", "7",
-         "--monst3r"])
-    run([geodrive, "build-dataset", "--dataroot", synth, "--version",
-         "v1.0-mini", "--monst3r", synth + "/monst3r", "--out", out,
-         "--threads", "2", "--quiet"])
-    # A run with two clips, one of them without its camera trajectory.
-    clips = sorted(os.listdir(os.path.join(synth, "monst3r")))
-    bad_root = os.path.join(work, "monst3r_broken")
-    for c in clips[:2]:
-        shutil.copytree(os.path.join(synth, "monst3r", c),
-                        os.path.join(bad_root, c))
-    os.remove(os.path.join(bad_root, clips[1], "pred_traj.txt"))
-    out_bad = os.path.join(work, "pairs_broken")
-    run([geodrive, "build-dataset", "--dataroot", synth, "--version",
-         "v1.0-mini", "--monst3r", bad_root, "--out", out_bad, "--quiet"],
-        ok_codes=(3,))
+    try:
+        # The demo's data (scripts/demo.sh).
+        run([geodrive, "synth", "--out", synth, "--scenes", "2", "--seed", "7",
+             "--monst3r"])
+        run([geodrive, "build-dataset", "--dataroot", synth, "--version",
+             "v1.0-mini", "--monst3r", synth + "/monst3r", "--out", out,
+             "--threads", "2", "--quiet"])
+        # A run with two clips, one of them without its camera trajectory.
+        clips = sorted(os.listdir(os.path.join(synth, "monst3r")))
+        bad_root = os.path.join(work, "monst3r_broken")
+        for c in clips[:2]:
+            shutil.copytree(os.path.join(synth, "monst3r", c),
+                            os.path.join(bad_root, c))
+        os.remove(os.path.join(bad_root, clips[1], "pred_traj.txt"))
+        out_bad = os.path.join(work, "pairs_broken")
+        run([geodrive, "build-dataset", "--dataroot", synth, "--version",
+             "v1.0-mini", "--monst3r", bad_root, "--out", out_bad, "--quiet"],
+            ok_codes=(3,))
+    finally:
+        # The synthetic world (≈ 1.6 GB) and its copy are not needed any more.
+        shutil.rmtree(synth, ignore_errors=True)
+        shutil.rmtree(os.path.join(work, "monst3r_broken"), ignore_errors=True)
     print("data built in %.1f s" % (time.time() - t0), flush=True)
 
     profile = tempfile.mkdtemp(prefix="chromium-profile-", dir=work)

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 #include <string>
 
 #include "dataset/build_dataset.h"
@@ -43,16 +44,18 @@ std::string AddPair(const std::string& out,
   m.geometry_source = geometry;
   m.pose_units = geometry == "monst3r" ? "monst3r" : "metres";
   m.scale = scale;
-  m.scale_source = geometry == "monst3r" ? "lidar" : "none";
+  m.scale_source = geometry == "monst3r" ? "lidar" : "ego";
   m.preset = "paper";
   m.edit_mode = "3d";
   m.options_json = "{}";
   m.options_hash = "0123456789abcdef";
   m.quality.coverage = coverage;
   m.quality.psnr_static = psnr;
-  for (const char* role : {"gt", "cond", "preview"}) {
-    const std::string name =
-        std::string(role) + (role == std::string("preview") ? ".png" : ".mp4");
+  for (const auto& [role, name] :
+       std::map<std::string, std::string>{{"gt", "gt.mp4"},
+                                          {"cond", "cond.mp4"},
+                                          {"preview", "preview.png"},
+                                          {"first_frame", "first_frame.png"}}) {
     m.files[role] = name;
     test::WriteFile(dir + "/" + name, "x");
   }
@@ -118,7 +121,7 @@ TEST(BuildReport, FormatsNumbersWithUnitsAndDashesForMissingValues) {
   EXPECT_NE(html.find(">23.3 dB<"), std::string::npos);
   EXPECT_NE(html.find(">1.23 m/unit<"), std::string::npos);
   // The lidar pair has neither PSNR nor scale; the failed clip has no values.
-  EXPECT_NE(html.find("<td class='n' title='poses in metres'>—</td>"),
+  EXPECT_NE(html.find("<td class='n' title='metric geometry (ego)'>—</td>"),
             std::string::npos);
   EXPECT_EQ(Count(html, "class='pair-row'"), 2);
   EXPECT_EQ(Count(html, "class='fail-row'"), 1);
@@ -148,7 +151,7 @@ TEST(BuildReport, EscapesDataAndListsFailuresWithMessages) {
   EXPECT_EQ(Count(html, "<script>"), 1);
 }
 
-TEST(BuildReport, VideosSideBySideWithThePreviewAsPosterAndFallback) {
+TEST(BuildReport, VideosSideBySideOverThePreviewStrip) {
   const std::string out = MakeOutput();
   WriteBuildReport(out, nullptr);
   const std::string html = test::ReadFile(out + "/report.html");
@@ -158,9 +161,15 @@ TEST(BuildReport, VideosSideBySideWithThePreviewAsPosterAndFallback) {
             std::string::npos);
   EXPECT_NE(html.find("src='pairs/scene-0001_0000/cond.mp4'"),
             std::string::npos);
-  EXPECT_NE(html.find("poster='pairs/scene-0001_0000/preview.png'><img "
+  // The first frame as the ground truth's poster, the preview as the
+  // fallback of browsers without video, and the preview strip under both.
+  EXPECT_NE(html.find("poster='pairs/scene-0001_0000/first_frame.png'><img "
                       "src='pairs/scene-0001_0000/preview.png'"),
             std::string::npos);
+  EXPECT_EQ(Count(html,
+                  "<figure class='strip'><img loading='lazy' "
+                  "src='pairs/scene-0001_0000/preview.png'"),
+            1);
 }
 
 TEST(BuildReport, SameInputsGiveTheSameBytes) {
