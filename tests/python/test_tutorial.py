@@ -133,6 +133,15 @@ def test_the_setup_blocks_are_the_ones_not_run():
     assert "-DGEODRIVE_WITH_PYTHON=ON" in text
     for lang, code in blocks():
         assert lang in ("sh", "bash", "python", "text"), "unknown block ```" + lang
+    # The targets the set-up builds exist (the build itself is not run here).
+    defined = ""
+    for folder in ("apps", "python"):
+        with open(os.path.join(folder, "CMakeLists.txt"), encoding="utf-8") as f:
+            defined += f.read()
+    targets = re.findall(r"--target ([\w ]+)", text)
+    assert targets, text
+    for name in " ".join(targets).split():
+        assert re.search(r"(add_executable|pybind11_add_module)\(%s " % name, defined), name
 
 
 def test_the_tutorial_runs_as_written(real_scene, tmp_path):
