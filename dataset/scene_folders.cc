@@ -2,10 +2,10 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -19,8 +19,7 @@ SceneFolders::SceneFolders(std::string root,
       mapping_file_(mapping_file),
       marker_(std::move(marker)) {
   if (mapping_file.empty()) return;
-  std::ifstream in(mapping_file);
-  GEODRIVE_CHECK_INPUT(in.good(), mapping_file, ": cannot open mapping file");
+  InputFileStream in(mapping_file);
   std::string line;
   int number = 0;
   while (std::getline(in, line)) {

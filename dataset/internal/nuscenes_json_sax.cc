@@ -1,16 +1,16 @@
 // The reference JSON front end of the nuScenes table reader: nlohmann's SAX
-// parser streams a table file (1 MiB ifstream buffer, no DOM) into JsonRecords.
-// This was the reader's only front end until the simdjson one
+// parser streams a table file (InputFileStream with a 1 MiB buffer, no DOM)
+// into JsonRecords. This was the reader's only front end until the simdjson one
 // (nuscenes_json_simd.cc); it stays as the behaviour of record for input the
 // fast front end does not take (bad JSON above all: its errors are the
 // reader's JSON errors). See nuscenes_json.h.
 
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "dataset/internal/nuscenes_json.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -225,13 +225,8 @@ size_t ParseTableFileSax(const std::string& path, RecordSink* sink) {
   if (!fs::exists(path, ec)) ThrowInputError(path, "missing table file");
   if (fs::is_directory(path, ec))
     ThrowInputError(path, "is a directory, expected a JSON table");
-  const size_t bytes = fs::file_size(path, ec);
-  std::ifstream in;
-  std::vector<char> buffer(1 << 20);
-  in.rdbuf()->pubsetbuf(buffer.data(),
-                        static_cast<std::streamsize>(buffer.size()));
-  in.open(path, std::ios::binary);
-  if (!in) ThrowInputError(path, "cannot open table file");
+  InputFileStream in(path, size_t{1} << 20);  // refuses a FIFO or device
+  const size_t bytes = static_cast<size_t>(in.size());
   TableSax sax(path, sink);
   const bool ok = nlohmann::json::sax_parse(in, &sax);
   if (!ok || !sax.finished()) {

@@ -58,6 +58,8 @@
 #include <utility>
 
 #include "dataset/internal/nuscenes_json.h"
+#include "geometry/util/input_file.h"
+#include "geometry/util/status.h"
 
 namespace geodrive {
 namespace nuscenes_json {
@@ -137,13 +139,14 @@ bool FindBoundary(const char* data, size_t n, size_t* end, size_t* next) {
 
 TableSlicer::TableSlicer(const std::string& path, size_t slice_bytes)
     : slice_bytes_(std::max<size_t>(slice_bytes, 64)) {
-  fd_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  struct stat st {};
-  if (fd_ < 0 || fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
+  // Not a readable regular file: failed(), and the SAX reader reports why.
+  try {
+    InputFile input = OpenInputFile(path);
+    file_bytes_ = static_cast<size_t>(input.size());
+    fd_ = input.Release();
+  } catch (const InputError&) {
     failed_ = true;
-    return;
   }
-  file_bytes_ = static_cast<size_t>(st.st_size);
 }
 
 TableSlicer::~TableSlicer() {

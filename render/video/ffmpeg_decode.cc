@@ -15,6 +15,7 @@ extern "C" {
 #include <mutex>
 #include <opencv2/imgproc.hpp>
 
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 #include "render/video/ffmpeg_log.h"
 
@@ -57,6 +58,7 @@ void CheckFrameSize(const std::string& path, int64_t width, int64_t height) {
 // Opens the container (file protocol only, no external references) and
 // refuses what is not MP4/MOV, AVI or Matroska/WebM.
 void OpenContainer(const std::string& path, Decoder* d) {
+  CheckInputFile(path);  // libavformat opens the path itself
   AVDictionary* options = nullptr;
   av_dict_set(&options, "protocol_whitelist", "file", 0);
   const std::string url = "file:" + path;

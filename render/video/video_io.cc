@@ -6,6 +6,7 @@
 #include <map>
 
 #include "geometry/image_io.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 #include "render/video/ffmpeg_decode.h"
 #include "render/video/ffmpeg_encode.h"
@@ -82,7 +83,7 @@ std::vector<cv::Mat> ReadVideoFrames(const std::string& path) {
   GEODRIVE_CHECK_INPUT(
       IsVideoFile(path), path,
       ": not a video (expected .mp4/.avi/.mkv/.mov/.webm or a frame folder)");
-  GEODRIVE_CHECK_INPUT(fs::is_regular_file(path), path, ": not a regular file");
+  CheckInputFile(path);  // a FIFO or device named like a video
   return DecodeVideoFileRgb(path);
 }
 

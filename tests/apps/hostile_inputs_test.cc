@@ -11,12 +11,15 @@
 // combined with it.
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
@@ -199,6 +202,37 @@ TEST(HostileSizes, RenderOf3000FramesStreams) {
   std::string json((std::istreambuf_iterator<char>(rj)), {});
   EXPECT_NE(json.find("\"contact_sheet_frames\": 100"), std::string::npos);
   EXPECT_NE(json.find("\"frame\": 2999"), std::string::npos);
+}
+
+// Paths that are not regular files (geometry/util/input_file.h): `info` on a
+// FIFO with no writer, a link to /dev/zero and a folder named like a file
+// each ends within seconds in one line naming the path and what it is, exit 2.
+TEST(NotRegularFiles, InfoRefusesFifosDevicesAndFolders) {
+  const std::string dir = test::MakeTempDir("hostile_not_regular");
+  const std::string fifo_kind = "is a FIFO/pipe, not a regular file";
+  const std::string char_kind = "is a character device, not a regular file";
+  std::vector<std::pair<std::string, std::string>> cases;
+  for (const char* name :
+       {"traj.txt", "cloud.ply", "depth.npy", "img.png", "sweep.pcd.bin"}) {
+    const std::string fifo = dir + "/" + name;
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << fifo;
+    cases.emplace_back(fifo, fifo_kind);
+    const std::string zero = dir + "/zero_" + name;
+    fs::create_symlink("/dev/zero", zero);
+    cases.emplace_back(zero, char_kind);
+  }
+  fs::create_directory(dir + "/points.ply");
+  // `info` describes folders (reconstructions), so it says what this one is
+  // not.
+  cases.emplace_back(dir + "/points.ply", "is a directory");
+  for (const auto& [path, kind] : cases) {
+    std::string output;
+    const int code = test::RunCommand(
+        "timeout 20 " + test::GeodriveBinary() + " info " + path, &output);
+    EXPECT_EQ(code, 2) << path << ": " << output;
+    EXPECT_EQ(test::CountLines(output), 1) << output;
+    EXPECT_NE(output.find(path + ": " + kind), std::string::npos) << output;
+  }
 }
 
 }  // namespace
