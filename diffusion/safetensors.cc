@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "geometry/util/files.h"
+#include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -68,17 +69,9 @@ std::string DirName(const std::string& path) {
 }  // namespace
 
 SafetensorsFile::SafetensorsFile(const std::string& path) : path_(path) {
-  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd_ < 0)
-    ThrowInputError(path, "cannot open safetensors file (",
-                    std::strerror(errno), ")");
-  struct stat st;
-  if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd_);
-    fd_ = -1;
-    ThrowInputError(path, "not a regular file");
-  }
-  map_size_ = static_cast<uint64_t>(st.st_size);
+  InputFile input = OpenInputFile(path);  // a regular file, never blocking
+  map_size_ = input.size();
+  fd_ = input.Release();
   // From here on, failures must release the fd/map.
   try {
     if (map_size_ < 8)
@@ -143,8 +136,7 @@ SafetensorsCheckpoint::SafetensorsCheckpoint(const std::string& path)
     shards_[path] = std::move(file);
   } else {
     sharded_ = true;
-    std::ifstream in(path);
-    if (!in) ThrowInputError(path, "cannot open safetensors index");
+    InputFileStream in(path);
     json doc;
     try {
       doc = json::parse(in);
