@@ -1,6 +1,7 @@
 #include "eval/frechet.h"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -20,6 +21,26 @@ Eigen::MatrixXd SymmetricSqrt(const Eigen::MatrixXd& s) {
 }
 
 }  // namespace
+
+void CheckCovariance(const Eigen::MatrixXd& cov, const std::string& what) {
+  // Tolerances relative to the matrix's scale (its largest |entry|): a
+  // covariance computed in float64 is symmetric to rounding and its smallest
+  // eigenvalue is >= -1e-9 of the scale; a file outside that is not one (a
+  // sign flip, a transposed block, another array), and its Frechet distance
+  // would be meaningless (negative, or millions off).
+  const double scale = std::max(cov.cwiseAbs().maxCoeff(), 1e-300);
+  const double asym = (cov - cov.transpose()).cwiseAbs().maxCoeff();
+  GEODRIVE_CHECK_INPUT(asym <= 1e-9 * scale, what,
+                       ": not a covariance matrix: not symmetric (largest "
+                       "|S - S^T| entry ",
+                       asym, ", largest |S| entry ", scale, ")");
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(cov,
+                                                     Eigen::EigenvaluesOnly);
+  const double lowest = eig.eigenvalues().minCoeff();
+  GEODRIVE_CHECK_INPUT(lowest >= -1e-9 * scale * cov.rows(), what,
+                       ": not a covariance matrix: eigenvalue ", lowest,
+                       " < 0 (not positive semi-definite)");
+}
 
 FeatureStatistics ComputeFeatureStatistics(const Eigen::MatrixXd& features,
                                            const std::string& what) {
@@ -89,6 +110,13 @@ FrechetResult FrechetDistance(const FeatureStatistics& a,
   }
   r.trace_term = a.cov.trace() + b.cov.trace() - 2.0 * r.trace_sqrt;
   r.distance = r.mean_term + r.trace_term;
+  // The distance is >= 0 up to rounding of the traces; anything else means
+  // the statistics were not covariances: an error, never a reported figure.
+  const double tol = 1e-9 * (a.cov.trace() + b.cov.trace() + r.mean_term);
+  GEODRIVE_CHECK_INPUT(std::isfinite(r.distance) && r.distance >= -tol,
+                       "frechet: distance ", r.distance,
+                       " is not a valid distance (the statistics are not "
+                       "covariances of real features)");
   return r;
 }
 
@@ -127,6 +155,7 @@ FeatureStatistics LoadFeatureStatistics(const std::string& prefix) {
                        ": contains NaN or Inf");
   GEODRIVE_CHECK_INPUT(stats.cov.allFinite(), sigma_path,
                        ": contains NaN or Inf");
+  CheckCovariance(stats.cov, sigma_path);
   return stats;
 }
 

@@ -27,6 +27,11 @@ struct FeatureStatistics {
   int dims() const { return static_cast<int>(mean.size()); }
 };
 
+// Throws InputError naming `what` unless `cov` is a covariance matrix:
+// symmetric and positive semi-definite up to float64 rounding (relative
+// tolerance 1e-9 of its largest entry). Cached statistics are checked with it.
+void CheckCovariance(const Eigen::MatrixXd& cov, const std::string& what);
+
 // Mean and unbiased covariance of N x D features (one sample per row). Throws
 // InputError, naming `what`, when N <= D (the covariance would be singular:
 // FID/FVD need more samples than feature dimensions), or on non-finite values.

@@ -91,6 +91,12 @@ TrajectoryErrors ComputeTrajectoryErrors(
   out.ade = sum / p.size();
   out.fde = out.per_frame.back();
   out.rmse = std::sqrt(sq / p.size());
+  // Finite inputs can still overflow (positions near 1e300): an error, never
+  // an infinite figure in a report.
+  GEODRIVE_CHECK_INPUT(std::isfinite(out.ade) && std::isfinite(out.fde) &&
+                           std::isfinite(out.rmse),
+                       "trajectory errors: the errors overflow (ADE ", out.ade,
+                       "): positions too large to compare (units?)");
   return out;
 }
 

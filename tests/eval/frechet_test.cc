@@ -134,5 +134,50 @@ TEST(Frechet, StatisticsRoundTripThroughNpy) {
   EXPECT_THROW(LoadFeatureStatistics(prefix + "_missing"), InputError);
 }
 
+// Cached statistics that are not covariances are refused when loaded (a
+// sign-flipped or transposed sigma gave FID -4e6 written as a figure).
+TEST(Frechet, CachedStatisticsThatAreNotCovariancesAreRefused) {
+  const Eigen::MatrixXd f =
+      RandomFeatures(60, 5, 0.0, Eigen::VectorXd::LinSpaced(5, 0.5, 2));
+  const FeatureStatistics good = ComputeFeatureStatistics(f);
+  const std::string dir = test::MakeTempDir("frechet_bad_cov");
+  auto refused = [&](const Eigen::MatrixXd& cov, const char* what) {
+    FeatureStatistics s = good;
+    s.cov = cov;
+    SaveFeatureStatistics(dir + "/" + what, s);
+    try {
+      LoadFeatureStatistics(dir + "/" + what);
+      ADD_FAILURE() << what << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string(what) + "_sigma.npy"),
+                std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find("not a covariance"),
+                std::string::npos);
+    }
+  };
+  Eigen::MatrixXd negative = good.cov;
+  negative(2, 2) = -4e6;
+  refused(negative, "negative_variance");
+  refused(-good.cov, "sign_flipped");
+  Eigen::MatrixXd asymmetric = good.cov;
+  asymmetric(0, 4) += 0.5;
+  refused(asymmetric, "asymmetric");
+  Eigen::MatrixXd indefinite = Eigen::MatrixXd::Identity(5, 5);
+  indefinite(0, 1) = indefinite(1, 0) = 2.0;  // eigenvalues 3 and -1
+  refused(indefinite, "indefinite");
+  // A rank-deficient covariance (PSD, eigenvalue 0) is a covariance.
+  Eigen::MatrixXd singular = Eigen::MatrixXd::Zero(5, 5);
+  singular(0, 0) = 1.0;
+  FeatureStatistics s = good;
+  s.cov = singular;
+  SaveFeatureStatistics(dir + "/singular", s);
+  EXPECT_NO_THROW(LoadFeatureStatistics(dir + "/singular"));
+  // And a distance that cannot be one is never returned.
+  FeatureStatistics bad = good;
+  bad.cov = negative;
+  EXPECT_THROW(FrechetDistance(bad, good), InputError);
+}
+
 }  // namespace
 }  // namespace geodrive

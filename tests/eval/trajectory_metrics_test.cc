@@ -34,6 +34,19 @@ TEST(TrajectoryMetrics, HandComputedNoAlignment) {
   EXPECT_DOUBLE_EQ(x100.fde, 500.0);
 }
 
+// Finite positions whose errors overflow give an error, not ADE = inf
+// written as "not computed".
+TEST(TrajectoryMetrics, OverflowingErrorsAreAnError) {
+  const Trajectory gt = FromCentres({{0, 0, 0}, {1, 0, 0}});
+  const Trajectory pred = FromCentres({{1e308, 0, 0}, {-1e308, 0, 0}});
+  try {
+    ComputeTrajectoryErrors(pred, gt);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("overflow"), std::string::npos);
+  }
+}
+
 TEST(TrajectoryMetrics, ScaleAlignmentHandComputed) {
   // pred = gt / 2 about the origin: scale-only alignment finds 2 and zero
   // error; SE(3) cannot fix scale: best rigid fit of {0,1,2}/2 to {0,1,2} on a
