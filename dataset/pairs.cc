@@ -7,6 +7,8 @@
 #include <sstream>
 
 #include "geometry/util/files.h"
+#include "geometry/util/input_file.h"
+#include "geometry/util/json_fields.h"
 #include "geometry/util/names.h"
 #include "geometry/util/status.h"
 
@@ -139,16 +141,23 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     m.scene_name = j.at("scene").at("name").get<std::string>();
     m.scene_token = j.at("scene").at("token").get<std::string>();
     for (const auto& f : j.at("frames")) {
-      m.frames.push_back({f.at("sample_data_token").get<std::string>(),
-                          f.at("timestamp_us").get<int64_t>(),
-                          f.at("filename").get<std::string>()});
+      m.frames.push_back(
+          {f.at("sample_data_token").get<std::string>(),
+           internal::JsonInt(what, f.at("timestamp_us"),
+                             "frames[].timestamp_us", 0, INT64_MAX),
+           f.at("filename").get<std::string>()});
     }
     m.fps = j.at("fps").get<double>();
     const auto& k = j.at("intrinsics");
-    m.intrinsics =
-        PinholeCamera(k.at("fx").get<double>(), k.at("fy").get<double>(),
-                      k.at("cx").get<double>(), k.at("cy").get<double>(),
-                      k.at("width").get<int>(), k.at("height").get<int>());
+    m.intrinsics = PinholeCamera(
+        k.at("fx").get<double>(), k.at("fy").get<double>(),
+        k.at("cx").get<double>(), k.at("cy").get<double>(),
+        static_cast<int>(internal::JsonInt(what, k.at("width"),
+                                           "intrinsics.width", 1,
+                                           internal::kMaxImageSide)),
+        static_cast<int>(internal::JsonInt(what, k.at("height"),
+                                           "intrinsics.height", 1,
+                                           internal::kMaxImageSide)));
     m.resize_mode = j.at("resize_mode").get<std::string>();
     for (const auto& p : j.at("world_from_cam"))
       m.world_from_cam.push_back(PoseFromJson(p, what));
@@ -174,8 +183,12 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     if (q.contains("completion_holdout")) {
       const auto& h = q.at("completion_holdout");
       PairQuality::HoldOut v;
-      v.held_out = h.at("held_out").get<int64_t>();
-      v.covered = h.at("covered").get<int64_t>();
+      v.held_out = internal::JsonInt(what, h.at("held_out"),
+                                     "quality.completion_holdout.held_out", 0,
+                                     INT64_MAX);
+      v.covered =
+          internal::JsonInt(what, h.at("covered"),
+                            "quality.completion_holdout.covered", 0, INT64_MAX);
       v.mae_m = h.at("mae_m").get<double>();
       v.rmse_m = h.at("rmse_m").get<double>();
       v.within_5_percent = h.at("within_5_percent").get<double>();
@@ -194,7 +207,9 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     m.frame_source = j.value("frame_source", std::string("all"));
     m.frame_interval_s = j.value("frame_interval_s", 0.0);
     if (j.contains("upstream_scene_idx"))
-      m.upstream_scene_idx = j.at("upstream_scene_idx").get<int>();
+      m.upstream_scene_idx = static_cast<int>(
+          internal::JsonInt(what, j.at("upstream_scene_idx"),
+                            "upstream_scene_idx", 0, INT32_MAX));
     m.files = j.at("files").get<std::map<std::string, std::string>>();
     if (j.contains("file_sizes"))
       m.file_sizes = j.at("file_sizes").get<std::map<std::string, uint64_t>>();
@@ -215,8 +230,8 @@ PairMeta ReadPairMeta(const std::string& pair_dir) {
 PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry) {
   const std::string& rel = entry.pair_dir;
   const std::string where = build_dir + "/manifest.jsonl";
-  CheckRelativePathInside(rel, where + ": pair '" + entry.clip_id +
-                                   "' pair_dir");
+  CheckRelativePathInside(rel,
+                          where + ": pair '" + entry.clip_id + "' pair_dir");
   PairRecord r;
   r.entry = entry;
   r.dir = build_dir + "/" + rel;
@@ -236,9 +251,15 @@ PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry) {
                            meta_path, ": files.", role, " = '", name,
                            "' is not a plain name inside the pair folder");
       const std::string path = r.dir + "/" + name;
-      GEODRIVE_CHECK_INPUT(
-          std::ifstream(path).good() || std::filesystem::is_directory(path),
-          path, ": missing (listed in meta.json files.", role, ")");
+      // A frame folder, or a regular file (CheckInputFile: a FIFO or a
+      // device is refused, never opened).
+      std::error_code ec;
+      if (!std::filesystem::is_directory(path, ec)) {
+        GEODRIVE_CHECK_INPUT(std::filesystem::exists(path, ec), path,
+                             ": missing (listed in meta.json files.", role,
+                             ")");
+        CheckInputFile(path);
+      }
       return path;
     }
     ThrowInputError(meta_path, "files has neither '", lossless, "' nor '",
@@ -269,7 +290,8 @@ ManifestEntry ManifestEntryFromJson(const std::string& line,
     e.clip_id = j.at("clip_id").get<std::string>();
     e.pair_dir = j.at("pair_dir").get<std::string>();
     e.scene_name = j.at("scene").get<std::string>();
-    e.num_frames = j.at("num_frames").get<int>();
+    e.num_frames = static_cast<int>(
+        internal::JsonInt(what, j.at("num_frames"), "num_frames", 1, 1 << 20));
     e.geometry_source = j.at("geometry_source").get<std::string>();
     e.pose_units = j.at("pose_units").get<std::string>();
     e.mean_coverage = j.at("mean_coverage").get<double>();

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_fields.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -32,7 +33,8 @@ SceneFolders::SceneFolders(std::string root,
       try {
         j = nlohmann::json::parse(line);
         const std::string id = j.at("clip_id").get<std::string>();
-        const int64_t index = j.at("index").get<int64_t>();
+        const int64_t index =
+            internal::JsonInt(where, j.at("index"), "index", 0, 999999);
         GEODRIVE_CHECK_INPUT(index >= 0, where, ": negative index");
         char name[32];
         std::snprintf(name, sizeof(name), "sample_%06lld",

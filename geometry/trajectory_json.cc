@@ -17,6 +17,8 @@ namespace geodrive {
 namespace {
 
 using json = nlohmann::json;
+using internal::JsonInt;
+using internal::kMaxImageSide;
 using internal::JsonNumber;
 using internal::JsonVector;
 
@@ -53,14 +55,15 @@ Trajectory ReadTrajectoryJson(const std::string& path,
       ThrowInputError(
           path, "camera: only pixel_convention \"integer-index\" is supported");
     }
-    if (!c["width"].is_number_integer() || !c["height"].is_number_integer()) {
-      ThrowInputError(path, "camera: width and height must be integers");
-    }
-    PinholeCamera cam(JsonNumber(path, c["fx"], "camera.fx"),
-                      JsonNumber(path, c["fy"], "camera.fy"),
-                      JsonNumber(path, c["cx"], "camera.cx"),
-                      JsonNumber(path, c["cy"], "camera.cy"),
-                      c["width"].get<int>(), c["height"].get<int>());
+    PinholeCamera cam(
+        JsonNumber(path, c["fx"], "camera.fx"),
+        JsonNumber(path, c["fy"], "camera.fy"),
+        JsonNumber(path, c["cx"], "camera.cx"),
+        JsonNumber(path, c["cy"], "camera.cy"),
+        static_cast<int>(
+            JsonInt(path, c["width"], "camera.width", 1, kMaxImageSide)),
+        static_cast<int>(
+            JsonInt(path, c["height"], "camera.height", 1, kMaxImageSide)));
     cam.Check(path + ": camera");
     file_info.camera = cam;
   }

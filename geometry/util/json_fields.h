@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -39,6 +40,34 @@ inline double JsonNumber(const std::string& path,
   if (!std::isfinite(v)) ThrowInputError(path, where, " is not finite");
   return v;
 }
+
+// An integer in [lo, hi], read in its own type: a JSON integer (3.0, 3.7
+// and "3" are errors, not 3) whose value fits the range (2^32 + 1 for a
+// 32-bit field is an error, never the 1 a cast would give).
+inline int64_t JsonInt(const std::string& path,
+                       const nlohmann::json& j,
+                       const std::string& where,
+                       int64_t lo,
+                       int64_t hi) {
+  if (!j.is_number_integer())
+    ThrowInputError(path, where, " is not an integer");
+  if (j.is_number_unsigned()) {
+    const uint64_t u = j.get<uint64_t>();
+    if (hi < 0 || u > static_cast<uint64_t>(hi) ||
+        (lo > 0 && u < static_cast<uint64_t>(lo)))
+      ThrowInputError(path, where, " = ", u, " is out of range [", lo, ", ", hi,
+                      "]");
+    return static_cast<int64_t>(u);
+  }
+  const int64_t v = j.get<int64_t>();
+  if (v < lo || v > hi)
+    ThrowInputError(path, where, " = ", v, " is out of range [", lo, ", ", hi,
+                    "]");
+  return v;
+}
+
+// The largest image side any reader accepts (camera width/height fields).
+constexpr int64_t kMaxImageSide = 1 << 16;
 
 // The string at `key` of `object`, `fallback` when the key is absent; any
 // other type is an InputError (nlohmann's value() would throw its own

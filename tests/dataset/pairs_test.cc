@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "geometry/util/files.h"
 #include "geometry/util/progress.h"
@@ -123,6 +125,56 @@ TEST(Pairs, BadInputNamesTheFile) {
   }
   EXPECT_THROW(ReadPairMeta(dir + "/missing"), InputError);
   EXPECT_THROW(PairMetaFromJson("{\"clip_id\": 3}", "m.json"), InputError);
+}
+
+// Integer fields are read in their own type and range: a value a cast would
+// wrap or truncate (2^32 + 1 -> 1, 3.7 -> 3, -1 frames) is an error naming
+// the field.
+TEST(Pairs, IntegerFieldsAreRangeCheckedNotCoerced) {
+  const std::string good = PairMetaToJson(SampleMeta());
+  ASSERT_NO_THROW(PairMetaFromJson(good, "meta.json"));
+  auto refused = [&](const std::string& from, const std::string& to,
+                     const std::string& field) {
+    std::string bad = good;
+    const size_t at = bad.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    bad.replace(at, from.size(), to);
+    try {
+      PairMetaFromJson(bad, "meta.json");
+      ADD_FAILURE() << to << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos)
+          << e.what();
+    }
+  };
+  refused("\"width\": 720", "\"width\": 4294967297", "intrinsics.width");
+  refused("\"width\": 720", "\"width\": 720.5", "intrinsics.width");
+  refused("\"height\": 480", "\"height\": -480", "intrinsics.height");
+  refused("\"timestamp_us\": 1000000", "\"timestamp_us\": 18446744073709551615",
+          "timestamp_us");
+  refused("\"timestamp_us\": 1000000", "\"timestamp_us\": 1e6", "timestamp_us");
+
+  const std::string dir = test::MakeTempDir("manifest_fields");
+  ManifestEntry e;
+  e.clip_id = "scene-0001_0000";
+  e.pair_dir = "pairs/scene-0001_0000";
+  e.num_frames = 25;
+  const std::string line = ManifestEntryToJson(e);
+  ASSERT_NO_THROW(ManifestEntryFromJson(line, "m"));
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"\"num_frames\":25", "\"num_frames\":4294967321"},
+           {"\"num_frames\":25", "\"num_frames\":0"},
+           {"pairs/scene-0001_0000", "../../etc"},
+           {"pairs/scene-0001_0000", "/abs/pair"},
+           {"\"clip_id\":\"scene-0001_0000\"", "\"clip_id\":\"../x\""}}) {
+    std::string bad = line;
+    const size_t at = bad.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    bad.replace(at, from.size(), to);
+    EXPECT_THROW(ManifestEntryFromJson(bad, dir + "/manifest.jsonl:1"),
+                 InputError)
+        << "accepted: " << bad;
+  }
 }
 
 TEST(Job, CommitDirectoryIsAtomicAndRefusesOverwrite) {
