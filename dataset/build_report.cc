@@ -154,12 +154,12 @@ std::string SvgHistogram(const std::vector<double>& values,
     const int maxc = *std::max_element(counts.begin(), counts.end());
     const double ystep = std::max(1.0, NiceStep(maxc, 5));
     const double ytop = std::max(ystep, std::ceil(maxc / ystep) * ystep);
-    // Plot area inside a 400 x 210 view box.
-    const double x0 = 46, x1 = 390, y0 = 12, y1 = 160;
+    // Plot area inside a 320 x 196 view box.
+    const double x0 = 46, x1 = 310, y0 = 10, y1 = 146;
     const double pw = x1 - x0, ph = y1 - y0;
     auto xpos = [&](double v) { return x0 + (v - h.lo) / (h.hi - h.lo) * pw; };
     auto ypos = [&](double c) { return y1 - c / ytop * ph; };
-    os << "<svg viewBox='0 0 400 210' role='img' aria-label='" << Html(h.title)
+    os << "<svg viewBox='0 0 320 196' role='img' aria-label='" << Html(h.title)
        << "'>";
     // Count axis: grid lines and labels.
     os << "<g class='grid'>";
@@ -192,11 +192,11 @@ std::string SvgHistogram(const std::vector<double>& values,
       const std::string x = Fixed(xpos(v), 1);
       os << "<line class='axis' x1='" << x << "' x2='" << x << "' y1='" << y1
          << "' y2='" << y1 + 4 << "'/><text class='xt' x='" << x << "' y='"
-         << y1 + 16 << "'>" << Short(std::abs(v) < xstep * 1e-6 ? 0 : v)
+         << y1 + 19 << "'>" << Short(std::abs(v) < xstep * 1e-6 ? 0 : v)
          << "</text>";
     }
-    os << "<text class='xl' x='" << (x0 + x1) / 2 << "' y='204'>"
-       << Html(h.x_label) << "</text><text class='yl' transform='translate(12 "
+    os << "<text class='xl' x='" << (x0 + x1) / 2 << "' y='192'>"
+       << Html(h.x_label) << "</text><text class='yl' transform='translate(13 "
        << (y0 + y1) / 2 << ") rotate(-90)'>" << Html(h.y_label)
        << "</text></svg>";
   }
@@ -259,15 +259,15 @@ th[aria-sort=ascending] button::after{content:" \2191";color:var(--fg)}
 th[aria-sort=descending] button::after{content:" \2193";color:var(--fg)}
 tr.fail-row td{color:var(--bad)}
 .bar-cell{min-width:80px}.bar-cell span{display:block;height:8px;background:#9bb8d8;border-radius:2px}
-.hists{display:grid;grid-template-columns:repeat(auto-fill,minmax(300px,1fr));gap:12px}
+.hists{display:grid;grid-template-columns:repeat(auto-fill,minmax(260px,1fr));gap:12px}
 figure{margin:0}
 figure.hist{background:var(--soft);border-radius:6px;padding:8px}
 figure.hist svg{width:100%;height:auto;display:block}
 figure.hist .empty{padding:40px 0;text-align:center;color:var(--muted)}
 figcaption{font-size:.9em;margin-top:4px}
-svg text{font-size:11px;fill:var(--fg)}
+svg text{font-size:13px;fill:var(--fg)}
 svg .yt{text-anchor:end;dominant-baseline:middle}svg .xt,svg .xl,svg .yl{text-anchor:middle}
-svg .xl,svg .yl{font-size:12px;fill:var(--muted)}
+svg .xl,svg .yl{font-size:13px;fill:var(--muted)}
 svg .grid line{stroke:#e2e6ea}svg .axis{stroke:#6b7480}svg .bar{fill:#4a7fb5}
 img.wide{width:100%;max-width:1200px;height:auto;border:1px solid var(--line)}
 ol.failures{padding-left:1.4em}
