@@ -177,8 +177,11 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions options);
 // report.html written. Returns the number of pairs.
 int MergeBuildOutputs(const std::string& out);
 
-// Writes OUT/report.html (counts, timing, coverage and scale histograms,
-// previews, failures).
+// Writes OUT/report.html: one self-contained page (inline CSS and script;
+// links only to the pair files) with the counts, quality histograms, a
+// sortable per-pair table, the failures with their messages, each pair's GT
+// and condition videos side by side, and the time per stage. The same inputs
+// give the same bytes.
 void WriteBuildReport(const std::string& out,
                       const BuildDatasetSummary* summary);
 
