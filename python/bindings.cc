@@ -3,17 +3,29 @@
 // Conventions: poses are (T, 4, 4) float64 matrices, world_from_cam unless a
 // name says otherwise; cameras are (3, 3) K in integer-index pixels (OpenCV);
 // images are (H, W, 3) uint8 RGB. Results are NumPy arrays that own their
-// buffers. Every heavy call releases the GIL. InputError (bad input, the CLI's
-// one-line messages) becomes ValueError with the same text.
+// buffers. Every heavy call releases the GIL.
+//
+// Paths are PathArg: str, bytes or os.PathLike, UTF-8 without NUL bytes.
+// C++ exceptions become one-line Python errors (TranslateException): InputError
+// -> ValueError, out of memory -> MemoryError, std::filesystem errors ->
+// OSError naming the paths, anything else -> RuntimeError. Arguments pybind11
+// cannot convert are explained by geodrive/_args.py (a TypeError or
+// ValueError naming the argument). Forked children render serially
+// (ForkedChildRunsOpenMPSerially).
 
+#include <omp.h>
+#include <pthread.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <Eigen/Geometry>
 #include <cstring>
+#include <filesystem>
 #include <memory>
+#include <new>
 #include <opencv2/core.hpp>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -33,6 +45,66 @@
 #include "render/video/video_io.h"
 
 namespace py = pybind11;
+
+namespace geodrive {
+namespace {
+
+// A path argument (see type_caster<PathArg> below).
+struct PathArg {
+  std::string value;
+};
+
+}  // namespace
+}  // namespace geodrive
+
+namespace pybind11::detail {
+
+// PathArg from str, bytes or os.PathLike (pathlib.Path): os.fspath(), then
+// UTF-8 without NUL bytes; anything else does not load (geodrive/_args.py
+// then names the argument and what is wrong with it).
+template <>
+struct type_caster<geodrive::PathArg> {
+  PYBIND11_TYPE_CASTER(geodrive::PathArg, const_name("os.PathLike"));
+
+  bool load(handle src, bool /*convert*/) {
+    object fs = reinterpret_steal<object>(PyOS_FSPath(src.ptr()));
+    if (!fs) {
+      PyErr_Clear();
+      return false;
+    }
+    const char* data = nullptr;
+    Py_ssize_t size = 0;
+    object utf8;
+    if (PyUnicode_Check(fs.ptr())) {
+      data = PyUnicode_AsUTF8AndSize(fs.ptr(), &size);  // fails on surrogates
+    } else {
+      char* bytes = nullptr;
+      if (PyBytes_AsStringAndSize(fs.ptr(), &bytes, &size) == 0) {
+        utf8 = reinterpret_steal<object>(
+            PyUnicode_DecodeUTF8(bytes, size, "strict"));
+        if (utf8) data = bytes;
+      }
+    }
+    if (!data) {
+      PyErr_Clear();
+      return false;
+    }
+    if (std::memchr(data, 0, static_cast<size_t>(size)) != nullptr)
+      return false;
+    value.value.assign(data, static_cast<size_t>(size));
+    return true;
+  }
+
+  static handle cast(const geodrive::PathArg& path,
+                     return_value_policy /*policy*/,
+                     handle /*parent*/) {
+    return PyUnicode_DecodeUTF8(path.value.data(),
+                                static_cast<Py_ssize_t>(path.value.size()),
+                                "strict");
+  }
+};
+
+}  // namespace pybind11::detail
 
 namespace geodrive {
 namespace {
@@ -199,11 +271,11 @@ void BindDataset(py::module_& m) {
 
   m.def(
       "open_dataset",
-      [](const std::string& root, const std::string& version,
+      [](const PathArg& root, const std::string& version,
          const std::string& frames, const std::string& channel, int clip_frames,
          int stride) {
         DriveDatasetOptions o;
-        o.root = root;
+        o.root = root.value;
         o.version = version;
         o.frames = ParseClipFrameSource(frames);
         o.channel = channel;
@@ -442,10 +514,10 @@ void BindScenes(py::module_& m) {
       "The registered scene sources (monst3r, lidar, lidar-dense, vggt, ...).");
   m.def(
       "condition_scene",
-      [](const std::string& source, const std::string& path, const PyClip* clip,
+      [](const std::string& source, const PathArg& path, const PyClip* clip,
          const std::string& filter) {
         SceneInputs in;
-        in.path = path;
+        in.path = path.value;
         in.clip = clip ? &clip->clip : nullptr;
         SceneSourceOptions o;
         GEODRIVE_CHECK_INPUT(filter == "paper" || filter == "released",
@@ -463,8 +535,8 @@ void BindScenes(py::module_& m) {
       "clip the clip it is built for (LiDAR scale, lidar sources).");
   m.def(
       "reconstruction_format",
-      [](const std::string& path) -> std::optional<std::string> {
-        const auto f = DetectReconstructionFormat(path);
+      [](const PathArg& path) -> std::optional<std::string> {
+        const auto f = DetectReconstructionFormat(path.value);
         if (!f) return std::nullopt;
         return ToString(*f);
       },
@@ -632,7 +704,7 @@ void BindEditedRender(py::module_& m) {
       "render_with_edits",
       [](const CArray<float>& points, const CArray<uint8_t>& colors,
          const CArray<double>& K, const CArray<double>& cam_from_world,
-         const std::string& boxes_json, std::pair<int, int> size,
+         const PathArg& boxes_json, std::pair<int, int> size,
          const std::string& mode, const std::vector<std::string>& remove,
          double radius, std::optional<CArray<uint8_t>> frame0_image) {
         CheckShape(points, {-1, 3}, "points");
@@ -653,7 +725,7 @@ void BindEditedRender(py::module_& m) {
         const PinholeCamera camera = CameraFrom(K, W, H);
         const std::vector<Rigid3d> poses =
             Poses(cam_from_world, "cam_from_world");
-        const BoxSequences boxes = ReadBoxesJson(boxes_json);
+        const BoxSequences boxes = ReadBoxesJson(boxes_json.value);
         std::vector<ObjectEdit> edits;
         for (const std::string& id : remove) {
           ObjectEdit e;
@@ -740,8 +812,8 @@ void BindTrajectories(py::module_& m) {
 
   m.def(
       "read_trajectory",
-      [](const std::string& path) {
-        const Trajectory t = ReadTrajectoryAny(path);
+      [](const PathArg& path) {
+        const Trajectory t = ReadTrajectoryAny(path.value);
         CArray<double> times({static_cast<py::ssize_t>(t.size())});
         for (size_t i = 0; i < t.size(); ++i)
           times.mutable_data()[i] = t.timestamps[i];
@@ -796,9 +868,9 @@ void BindMetrics(py::module_& m) {
 
   m.def(
       "read_manifest",
-      [](const std::string& path) {
+      [](const PathArg& path) {
         py::list out;
-        for (const ManifestEntry& e : ReadManifest(path))
+        for (const ManifestEntry& e : ReadManifest(path.value))
           out.append(py::module_::import("json").attr("loads")(
               ManifestEntryToJson(e)));
         return out;
@@ -806,14 +878,17 @@ void BindMetrics(py::module_& m) {
       py::arg("path"), "The lines of a build's manifest.jsonl, as dicts.");
   m.def(
       "read_pair",
-      [](const std::string& build_dir, const py::dict& entry) {
+      [](const PathArg& build, const py::dict& entry) {
         // The manifest line goes back through the C++ reader, so Python
         // pairs pass the same checks as C++ ones (ReadPair: pair_dir inside
         // the build, meta.json's clip id, listed files present).
-        const std::string line =
-            py::module_::import("json").attr("dumps")(entry).cast<std::string>();
+        const std::string line = py::module_::import("json")
+                                     .attr("dumps")(entry)
+                                     .cast<std::string>();
+        const std::string& build_dir = build.value;
         const PairRecord r = ReadPair(
-            build_dir, ManifestEntryFromJson(line, build_dir + "/manifest.jsonl"));
+            build_dir,
+            ManifestEntryFromJson(line, build_dir + "/manifest.jsonl"));
         py::dict out;
         out["dir"] = r.dir;
         out["gt_video"] = r.gt_video;
@@ -826,13 +901,14 @@ void BindMetrics(py::module_& m) {
       "paths and frame count.");
   m.def(
       "read_meta_json",
-      [](const std::string& pair_dir) {
-        return PairMetaToJson(ReadPairMeta(pair_dir));
+      [](const PathArg& pair_dir) {
+        return PairMetaToJson(ReadPairMeta(pair_dir.value));
       },
       py::arg("pair_dir"), "A pair's meta.json, validated, as JSON text.");
   m.def(
       "read_video",
-      [](const std::string& path) {
+      [](const PathArg& video) {
+        const std::string& path = video.value;
         std::vector<cv::Mat> frames;
         {
           py::gil_scoped_release release;
@@ -856,18 +932,107 @@ void BindMetrics(py::module_& m) {
       "Decodes a video (our FFmpeg reader) into (T, H, W, 3) uint8 RGB.");
 }
 
+// ---- Errors and fork safety ----
+
+// Sets a Python `type` error with `message`, its bytes that are not UTF-8
+// escaped (\xff): a message quoting a non-UTF-8 path or line still reads.
+void SetPythonError(PyObject* type, const std::string& message) {
+  py::object text = py::reinterpret_steal<py::object>(PyUnicode_DecodeUTF8(
+      message.data(), static_cast<Py_ssize_t>(message.size()),
+      "backslashreplace"));
+  if (!text) {
+    PyErr_Clear();
+    text = py::str("(an undecodable error message)");
+  }
+  PyErr_SetObject(type, text.ptr());
+}
+
+// A path for an OSError: str, undecodable bytes as surrogates (os.fsdecode).
+py::object PathOrNone(const std::filesystem::path& path) {
+  if (path.empty()) return py::none();
+  const std::string& s = path.native();
+  PyObject* text = PyUnicode_DecodeFSDefaultAndSize(
+      s.data(), static_cast<Py_ssize_t>(s.size()));
+  if (!text) {
+    PyErr_Clear();
+    return py::none();
+  }
+  return py::reinterpret_steal<py::object>(text);
+}
+
+// "filesystem error: <what>: <reason> [p1] [p2]" -> "<what>: <reason>".
+std::string FilesystemReason(const std::filesystem::filesystem_error& e) {
+  std::string text = e.what();
+  const std::string prefix = "filesystem error: ";
+  if (text.compare(0, prefix.size(), prefix) == 0) text.erase(0, prefix.size());
+  std::string suffix;
+  if (!e.path1().empty()) suffix += " [" + e.path1().native() + "]";
+  if (!e.path2().empty()) suffix += " [" + e.path2().native() + "]";
+  if (!suffix.empty() && text.size() >= suffix.size() &&
+      text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0)
+    text.resize(text.size() - suffix.size());
+  return text;
+}
+
+constexpr char kOutOfMemory[] =
+    "out of memory (the call needs more memory than this process may use: "
+    "try a smaller size, fewer frames or fewer threads)";
+
+// The module's exception boundary: every C++ exception leaves as one line.
+// InputError -> ValueError (its text); std::bad_alloc, std::length_error (a
+// size beyond what a container can hold) -> MemoryError (kOutOfMemory);
+// std::filesystem errors -> OSError(errno, reason, path1, None, path2), so
+// FileNotFoundError / PermissionError name their paths; any other exception
+// -> RuntimeError "internal error: <first line>". pybind11's own exceptions
+// go on to its translator.
+void TranslateException(std::exception_ptr p) {
+  try {
+    if (p) std::rethrow_exception(p);
+  } catch (const py::builtin_exception&) {
+    throw;
+  } catch (const InputError& e) {
+    SetPythonError(PyExc_ValueError, e.what());
+  } catch (const std::bad_alloc&) {
+    SetPythonError(PyExc_MemoryError, kOutOfMemory);
+  } catch (const std::length_error&) {
+    SetPythonError(PyExc_MemoryError, kOutOfMemory);
+  } catch (const std::filesystem::filesystem_error& e) {
+    const std::string reason = FilesystemReason(e);
+    py::object error = py::reinterpret_borrow<py::object>(PyExc_OSError)(
+        e.code().value(),
+        py::reinterpret_steal<py::object>(PyUnicode_DecodeUTF8(
+            reason.data(), static_cast<Py_ssize_t>(reason.size()),
+            "backslashreplace")),
+        PathOrNone(e.path1()), py::none(), PathOrNone(e.path2()));
+    PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(error.ptr())),
+                    error.ptr());
+  } catch (const std::exception& e) {
+    std::string text = e.what();
+    text = "internal error: " + text.substr(0, text.find('\n'));
+    SetPythonError(PyExc_RuntimeError, text);
+  }
+}
+
+// Fork safety: libgomp keeps the threads of a thread's last parallel region
+// for the next one, and fork() copies that bookkeeping but not the threads,
+// so a forked child's first parallel region of more than one thread waits for
+// them forever (multiprocessing's fork workers after a threads=2 render in
+// the parent). The rule: in a forked child, the thread that called fork() --
+// the child's only thread -- runs every OpenMP region on one thread
+// (max-active-levels 0 overrides num_threads clauses). Threads the child
+// starts itself have their own fresh OpenMP state; std::thread pools start
+// their threads per call and are unaffected. Results do not depend on the
+// thread count (the renderer draws each frame on one thread).
+void ForkedChildRunsOpenMPSerially() { omp_set_max_active_levels(0); }
+
 }  // namespace
 }  // namespace geodrive
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "geodrive: the GeoDrive toolkit's core over NumPy arrays";
-  py::register_exception_translator([](std::exception_ptr p) {
-    try {
-      if (p) std::rethrow_exception(p);
-    } catch (const geodrive::InputError& e) {
-      PyErr_SetString(PyExc_ValueError, e.what());
-    }
-  });
+  // Module-local: the translator applies to this module's functions only.
+  py::register_local_exception_translator(geodrive::TranslateException);
+  pthread_atfork(nullptr, nullptr, geodrive::ForkedChildRunsOpenMPSerially);
   geodrive::BindDataset(m);
   geodrive::BindClip(m);
   geodrive::BindScenes(m);

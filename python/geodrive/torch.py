@@ -15,8 +15,9 @@ import os
 import numpy as np
 import torch
 
+from . import _read_pair as read_pair
 from . import read_manifest, read_video
-from ._core import read_pair
+from ._args import check as _check
 
 __all__ = ["PairDataset"]
 
@@ -55,12 +56,17 @@ class PairDataset(torch.utils.data.Dataset):
     """The pairs listed in a build's manifest.jsonl.
 
     Args:
-      manifest: path of OUT/manifest.jsonl (pair folders are next to it).
+      manifest: path (str or os.PathLike) of OUT/manifest.jsonl (pair folders
+        are next to it).
       frames: frames per item (None = as built; 49 pads 25 -> 49).
       size: (H, W) to resize to (None = as built).
     """
 
     def __init__(self, manifest, frames=None, size=None):
+        _check("PairDataset()", "manifest", "os.PathLike", manifest)
+        _check("PairDataset()", "frames", "Optional[int]", frames)
+        _check("PairDataset()", "size", "Optional[Tuple[int, int]]", size)
+        manifest = os.fsdecode(manifest)
         self.root = os.path.dirname(os.path.abspath(manifest))
         self.entries = read_manifest(manifest)
         self.frames = frames
