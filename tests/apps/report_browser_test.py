@@ -7,8 +7,9 @@ Builds the demo's data (scripts/demo.sh: `geodrive synth --scenes 2 --seed 7
 --monst3r`, then `geodrive build-dataset`), opens its report and checks: no
 console errors, the counts and one row per pair as in manifest.jsonl, sorting
 by coverage (both directions), each pair's video elements and H.264 playback
-(or the preview fallback), the page in a narrow window, and writes screenshots
-to WORK_DIR. A second, small run with one clip's MonST3R folder broken checks
+(or, where H.264 does not play, links and the preview strips), the page in a
+narrow window, and writes screenshots to WORK_DIR (report.png: the first
+screen at 1280x900; report_pairs.png, report_videos.png, report_narrow.png). A second, small run with one clip's MonST3R folder broken checks
 the failures section against failures.jsonl.
 
 Usage: report_browser_test.py WORK_DIR   (GEODRIVE_BINARY: the geodrive binary)
@@ -320,11 +321,14 @@ def check_demo_report(d, out, work):
             else setTimeout(poll, 50);
           })();""")
         print("first gt video: %s" % meta)
-        m0 = read_jsonl(os.path.join(out, "manifest.jsonl"))[0]
+        m0 = manifest[0]
+        fps = json.load(open(os.path.join(out, m0["pair_dir"],
+                                          "meta.json")))["fps"]
         check(meta["readyState"] >= 1 and meta["error"] is None and
-              meta["duration"] > 0 and meta["width"] > 0,
-              "H.264 plays: the first video's metadata loaded (%s, %d frames)"
-              % (meta, m0["num_frames"]))
+              abs(meta["duration"] - m0["num_frames"] / fps) < 0.2 and
+              meta["width"] > 0,
+              "H.264 plays: the first video's metadata loaded (%s; %d frames "
+              "at %g fps)" % (meta, m0["num_frames"], fps))
         played = d.js_async("""
           var done = arguments[arguments.length - 1];
           var v = document.querySelector('video.cond');
