@@ -1463,12 +1463,57 @@ void Nuscenes::BuildChains() {
               sd_path, "record ", sample_data_[d].token.ToString(),
               ": timestamp does not increase along the prev/next chain");
         }
+        // A doubly linked chain: the next record points back here. A fork
+        // (two records whose next is the same, or a next that skips one)
+        // would silently drop the records off this path.
+        if (!chain.empty() && sample_data_[d].prev != chain.back()) {
+          ThrowInputError(
+              sd_path, "record ", sample_data_[d].token.ToString(),
+              ": prev/next chain forks (record ",
+              sample_data_[chain.back()].token.ToString(),
+              " has it as next, but its prev is ",
+              sample_data_[d].prev == kNoIndex
+                  ? std::string("empty")
+                  : sample_data_[sample_data_[d].prev].token.ToString(),
+              ")");
+        }
         chain.push_back(d);
         if (chain.size() > sample_data_.size()) {
           ThrowInputError(sd_path, "record ", sample_data_[d].token.ToString(),
                           ": prev/next chain has a cycle");
         }
       }
+    }
+  }
+  // Every record of a scene and channel is on its chain: one left off (a
+  // fork, a broken link) is named, not dropped.
+  std::vector<size_t> rows(chains_.size(), 0);
+  for (size_t d = 0; d < sample_data_.size(); ++d) {
+    const int32_t sample = sample_data_[d].sample;
+    if (sample == kNoIndex || samples_[sample].scene == kNoIndex ||
+        sample_data_[d].sensor == kNoIndex)
+      continue;
+    ++rows[static_cast<size_t>(samples_[sample].scene) * num_sensors +
+           sample_data_[d].sensor];
+  }
+  for (size_t i = 0; i < chains_.size(); ++i) {
+    if (rows[i] == chains_[i].size()) continue;
+    std::vector<bool> on(sample_data_.size(), false);
+    for (int32_t d : chains_[i]) on[d] = true;
+    for (size_t d = 0; d < sample_data_.size(); ++d) {
+      const int32_t sample = sample_data_[d].sample;
+      if (on[d] || sample == kNoIndex || samples_[sample].scene == kNoIndex ||
+          sample_data_[d].sensor == kNoIndex ||
+          static_cast<size_t>(samples_[sample].scene) * num_sensors +
+                  sample_data_[d].sensor !=
+              i)
+        continue;
+      ThrowInputError(sd_path, "record ", sample_data_[d].token.ToString(),
+                      " (", sensors_[sample_data_[d].sensor].channel,
+                      ", scene ", scenes_[i / num_sensors].name,
+                      ") is not on its channel's prev/next chain (",
+                      chains_[i].size(), " of ", rows[i],
+                      " records linked): a fork or a broken link");
     }
   }
 }

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 #include <string_view>
 
@@ -224,6 +225,7 @@ Trajectory ReadColmapTrajectory(const std::string& path) {
   std::vector<std::pair<std::string, Rigid3d>> images;
   size_t start = 0;
   int line_no = 0;
+  long declared_images = -1;  // from the header comment, when present
   bool expect_points = false;
   while (start < text.size()) {
     size_t end = text.find('\n', start);
@@ -233,9 +235,31 @@ Trajectory ReadColmapTrajectory(const std::string& path) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const size_t first = line.find_first_not_of(" \t");
-    if (first != std::string::npos && line[first] == '#') continue;
+    if (first != std::string::npos && line[first] == '#') {
+      // COLMAP's header states the count: "# Number of images: N, ...".
+      const std::string key = "Number of images:";
+      const size_t at = line.find(key);
+      if (at != std::string::npos)
+        declared_images =
+            std::strtol(line.c_str() + at + key.size(), nullptr, 10);
+      continue;
+    }
     if (expect_points) {  // the image's 2D points (may be empty)
       expect_points = false;
+      // Triples "X Y POINT3D_ID": all numbers. A line ending in a name is
+      // the next image: the file lost its points lines, and skipping it
+      // would drop every second image.
+      std::istringstream ps(line);
+      std::string token, last;
+      while (ps >> token) last = token;
+      char* rest = nullptr;
+      if (!last.empty()) std::strtod(last.c_str(), &rest);
+      GEODRIVE_CHECK_INPUT(
+          last.empty() || (rest && *rest == '\0'), path, " line ", line_no,
+          ": expected the 2D points line of image '", images.back().first,
+          "' (empty if it has none), found another image "
+          "line: every image line must be followed by its "
+          "points line");
       continue;
     }
     if (first == std::string::npos) continue;
@@ -261,6 +285,10 @@ Trajectory ReadColmapTrajectory(const std::string& path) {
     expect_points = true;
   }
   GEODRIVE_CHECK_INPUT(!images.empty(), path, ": no images");
+  GEODRIVE_CHECK_INPUT(declared_images < 0 ||
+                           declared_images == static_cast<long>(images.size()),
+                       path, ": the header says ", declared_images,
+                       " images, the file holds ", images.size());
   std::stable_sort(
       images.begin(), images.end(),
       [](const auto& a, const auto& b) { return a.first < b.first; });

@@ -21,7 +21,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Frame number -> file, for the files of `dir` named NNNN<ext>.
+// Frame number -> file, for the files of `dir` named NNNN<ext>. The numbers
+// must be unique ("0.npy" beside "000000.npy" is frame 0 twice, and which one
+// the folder lists first is arbitrary) and consecutive (a gap is a lost
+// frame): otherwise an InputError says which.
 std::map<long, std::string> Numbered(const std::string& dir,
                                      const std::string& ext) {
   std::map<long, std::string> out;
@@ -31,8 +34,20 @@ std::map<long, std::string> Numbered(const std::string& dir,
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     std::smatch m;
     const std::string file = e.path().filename().string();
-    if (e.is_regular_file() && std::regex_match(file, m, name))
-      out.emplace(std::stol(m[1].str()), e.path().string());
+    if (e.is_regular_file() && std::regex_match(file, m, name)) {
+      const auto [it, added] =
+          out.emplace(std::stol(m[1].str()), e.path().string());
+      GEODRIVE_CHECK_INPUT(added, dir, ": frame ", it->first, " twice (",
+                           fs::path(it->second).filename().string(), " and ",
+                           file, ")");
+    }
+  }
+  long expect = out.empty() ? 0 : out.begin()->first;
+  for (const auto& entry : out) {
+    GEODRIVE_CHECK_INPUT(entry.first == expect, dir, ": frame ", expect,
+                         " is missing (frames ", out.begin()->first, "..",
+                         out.rbegin()->first, " otherwise present)");
+    ++expect;
   }
   return out;
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include "dataset/nuscenes.h"
 #include "geometry/util/status.h"
@@ -366,6 +367,26 @@ TEST_F(NuscenesBadInput, FilenameOutsideTheDataset) {
   EXPECT_THAT(Load("absolute"), AllOf(HasSubstr("sample_data.json"),
                                       HasSubstr(Tok("sample_data", 2)),
                                       HasSubstr("absolute path")));
+}
+
+// A prev/next chain that forks (a next that skips a record, so the record
+// would silently drop out of every clip) is refused, naming the records.
+TEST_F(NuscenesBadInput, ForkedChainNamesTheRecords) {
+  auto& sd = fx_.tables["sample_data"];
+  std::map<std::string, size_t> row_of;
+  for (size_t i = 0; i < sd.size(); ++i)
+    row_of[sd[i]["token"].get<std::string>()] = i;
+  for (size_t i = 0; i < sd.size(); ++i) {
+    const std::string n1 = sd[i]["next"].get<std::string>();
+    if (n1.empty()) continue;
+    const std::string n2 = sd[row_of[n1]]["next"].get<std::string>();
+    if (n2.empty()) continue;
+    sd[i]["next"] = n2;  // skips n1, whose prev still names row i
+    EXPECT_THAT(Load("fork"), AllOf(HasSubstr("sample_data.json"),
+                                    HasSubstr(n2), HasSubstr("forks")));
+    return;
+  }
+  FAIL() << "the fixture has no chain of three records";
 }
 
 TEST_F(NuscenesBadInput, DuplicateToken) {

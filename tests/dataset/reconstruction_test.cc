@@ -520,6 +520,23 @@ TEST(Reconstruction, BadInputIsOneClearError) {
 }
 
 // The generic npz's optional keys: units, conf_scale, dynamic masks.
+// Numbered frame files are unique and consecutive: a CUT3R folder with
+// frame 0 twice, or with a frame missing, is refused naming the frame
+// (which of two files the folder lists first is arbitrary).
+TEST(Reconstruction, Cut3rFramesAreUniqueAndConsecutive) {
+  const std::string clip = ClipIds().front();
+  const Truth truth = ReadTruth(World() + "/monst3r/" + clip);
+  const std::string root = test::MakeTempDir("recon_cut3r_frames");
+  WriteCut3r(truth, root + "/twice");
+  fs::copy_file(root + "/twice/depth/000000.npy", root + "/twice/depth/0.npy");
+  ExpectError(ReconstructionFormat::kCut3r, root + "/twice",
+              "depth: frame 0 twice");
+  WriteCut3r(truth, root + "/gap");
+  fs::remove(root + "/gap/camera/000002.npz");
+  ExpectError(ReconstructionFormat::kCut3r, root + "/gap",
+              "camera: frame 2 is missing");
+}
+
 TEST(Reconstruction, GenericNpzStatesUnitsAndConfidenceScale) {
   const std::string clip = ClipIds().front();
   const Truth truth = ReadTruth(World() + "/monst3r/" + clip);

@@ -123,6 +123,28 @@ TEST(TrajectoryFormats, ColmapImagesTxtIsInvertedAndOrderedByName) {
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("line 1: quaternion norm 0.5"));
   }
+  // Without its POINTS2D lines every second image would be taken for points:
+  // refused, naming the line; and the header's image count is checked.
+  std::filesystem::create_directories(tmp + "/nopoints");
+  std::filesystem::create_directories(tmp + "/count");
+  Write(tmp + "/nopoints/images.txt",
+        line(1, a, "a.jpg") + line(2, b, "b.jpg") + line(3, a, "c.jpg"));
+  try {
+    ReadColmapTrajectory(tmp + "/nopoints/images.txt");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("line 2: expected the 2D points line"));
+  }
+  Write(tmp + "/count/images.txt",
+        "# Number of images: 3, mean observations per image: 0\n" +
+            line(1, a, "a.jpg") + "\n" + line(2, b, "b.jpg") + "\n");
+  try {
+    ReadColmapTrajectory(tmp + "/count/images.txt");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("the header says 3 images, the file "
+                                    "holds 2"));
+  }
 }
 
 }  // namespace
