@@ -131,7 +131,7 @@ std::optional<double> OptionalNumber(const json& j, const char* key) {
 PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
   json j;
   try {
-    j = json::parse(text);
+    j = internal::ParseJson(text, what);
   } catch (const json::exception& e) {
     ThrowInputError(what, "malformed JSON (", e.what(), ")");
   }
@@ -286,7 +286,7 @@ ManifestEntry ManifestEntryFromJson(const std::string& line,
                                     const std::string& what) {
   ManifestEntry e;
   try {
-    const json j = json::parse(line);
+    const json j = internal::ParseJson(line, what);
     e.clip_id = j.at("clip_id").get<std::string>();
     e.pair_dir = j.at("pair_dir").get<std::string>();
     e.scene_name = j.at("scene").get<std::string>();
@@ -335,7 +335,7 @@ std::vector<FailureEntry> ReadFailures(const std::string& path) {
     ++n;
     if (line.empty()) continue;
     try {
-      const json j = json::parse(line);
+      const json j = internal::ParseJson(line, path + ":" + std::to_string(n));
       out.push_back({j.at("clip_id").get<std::string>(),
                      j.at("stage").get<std::string>(),
                      j.at("error").get<std::string>()});

@@ -31,7 +31,7 @@ SceneFolders::SceneFolders(std::string root,
     if (line[first] == '{') {  // clips.jsonl of `geodrive clips`
       nlohmann::json j;
       try {
-        j = nlohmann::json::parse(line);
+        j = internal::ParseJson(line, where);
         const std::string id = j.at("clip_id").get<std::string>();
         const int64_t index =
             internal::JsonInt(where, j.at("index"), "index", 0, 999999);

@@ -17,6 +17,7 @@
 
 #include "geometry/util/files.h"
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -139,7 +140,7 @@ SafetensorsCheckpoint::SafetensorsCheckpoint(const std::string& path)
     InputFileStream in(path);
     json doc;
     try {
-      doc = json::parse(in);
+      doc = internal::ParseJson(in, path);
     } catch (const json::exception& e) {
       ThrowInputError(path, "safetensors index is not valid JSON (", e.what(),
                       ")");

@@ -46,7 +46,8 @@ Eigen::Vector3d QuaternionToAngleAxis(const Eigen::Quaterniond& q_in) {
   return q.vec() / sin_half * angle;
 }
 
-double RotationDistanceDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+double RotationDistanceDeg(const Eigen::Quaterniond& a,
+                           const Eigen::Quaterniond& b) {
   const Eigen::Quaterniond d = a.normalized().conjugate() * b.normalized();
   const double s = d.vec().norm();
   const double angle = 2.0 * std::atan2(s, std::abs(d.w()));
@@ -56,24 +57,44 @@ double RotationDistanceDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond
 namespace {
 void CheckRotation(const Eigen::Matrix3d& r, double tol, const char* what) {
   GEODRIVE_CHECK_INPUT(r.allFinite(), what, ": matrix has non-finite values");
-  const double ortho = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  GEODRIVE_CHECK_INPUT(ortho <= tol, what, ": rotation block is not orthonormal (max |RtR-I| = ",
-                       ortho, ")");
-  GEODRIVE_CHECK_INPUT(r.determinant() > 0, what, ": rotation block has negative determinant");
+  const double ortho =
+      (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  GEODRIVE_CHECK_INPUT(
+      ortho <= tol, what,
+      ": rotation block is not orthonormal (max |RtR-I| = ", ortho, ")");
+  GEODRIVE_CHECK_INPUT(r.determinant() > 0, what,
+                       ": rotation block has negative determinant");
 }
 }  // namespace
 
-Rigid3d::Rigid3d(const Eigen::Quaterniond& rotation_in, const Eigen::Vector3d& translation_in)
+Rigid3d::Rigid3d(const Eigen::Quaterniond& rotation_in,
+                 const Eigen::Vector3d& translation_in)
     : rotation(rotation_in), translation(translation_in) {}
 
+namespace {
+// A 4x4 transform's bottom row is [0 0 0 1]; anything else (a transposed
+// matrix holds its translation there) would be dropped silently.
+void CheckBottomRow(const Eigen::Matrix4d& m, double tol, const char* what) {
+  const Eigen::RowVector4d bottom = m.row(3);
+  GEODRIVE_CHECK_INPUT(
+      bottom.allFinite() &&
+          (bottom - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() <=
+              tol,
+      what, ": bottom row is [", bottom(0), " ", bottom(1), " ", bottom(2), " ",
+      bottom(3), "], expected [0 0 0 1] (a transposed matrix?)");
+}
+}  // namespace
+
 Rigid3d Rigid3d::FromMatrix(const Eigen::Matrix4d& m, double tol) {
+  CheckBottomRow(m, tol, "Rigid3d::FromMatrix");
   return FromMatrix3x4(m.topRows<3>(), tol);
 }
 
 Rigid3d Rigid3d::FromMatrix3x4(const Matrix3x4d& m, double tol) {
   const Eigen::Matrix3d r = m.leftCols<3>();
   CheckRotation(r, tol, "Rigid3d::FromMatrix");
-  GEODRIVE_CHECK_INPUT(m.col(3).allFinite(), "Rigid3d::FromMatrix: non-finite translation");
+  GEODRIVE_CHECK_INPUT(m.col(3).allFinite(),
+                       "Rigid3d::FromMatrix: non-finite translation");
   return Rigid3d(Eigen::Quaterniond(r).normalized(), m.col(3));
 }
 
@@ -101,11 +122,13 @@ bool Rigid3d::IsValid(double tol) const {
 }
 
 Rigid3d operator*(const Rigid3d& c_from_b, const Rigid3d& b_from_a) {
-  return Rigid3d((c_from_b.rotation * b_from_a.rotation).normalized(),
-                 c_from_b.translation + c_from_b.rotation * b_from_a.translation);
+  return Rigid3d(
+      (c_from_b.rotation * b_from_a.rotation).normalized(),
+      c_from_b.translation + c_from_b.rotation * b_from_a.translation);
 }
 
-Eigen::Vector3d operator*(const Rigid3d& b_from_a, const Eigen::Vector3d& x_in_a) {
+Eigen::Vector3d operator*(const Rigid3d& b_from_a,
+                          const Eigen::Vector3d& x_in_a) {
   return b_from_a.rotation * x_in_a + b_from_a.translation;
 }
 
@@ -114,11 +137,13 @@ Rigid3d Interpolate(const Rigid3d& a, const Rigid3d& b, double t) {
                  (1.0 - t) * a.translation + t * b.translation);
 }
 
-Sim3d::Sim3d(double scale_in, const Eigen::Quaterniond& rotation_in,
+Sim3d::Sim3d(double scale_in,
+             const Eigen::Quaterniond& rotation_in,
              const Eigen::Vector3d& translation_in)
     : scale(scale_in), rotation(rotation_in), translation(translation_in) {}
 
 Sim3d Sim3d::FromMatrix(const Eigen::Matrix4d& m, double tol) {
+  CheckBottomRow(m, tol, "Sim3d::FromMatrix");
   const Eigen::Matrix3d sr = m.topLeftCorner<3, 3>();
   GEODRIVE_CHECK_INPUT(sr.allFinite() && m.col(3).allFinite(),
                        "Sim3d::FromMatrix: non-finite values");
@@ -126,7 +151,8 @@ Sim3d Sim3d::FromMatrix(const Eigen::Matrix4d& m, double tol) {
   GEODRIVE_CHECK_INPUT(det > 0, "Sim3d::FromMatrix: non-positive determinant");
   const double scale = std::cbrt(det);
   CheckRotation(sr / scale, tol, "Sim3d::FromMatrix");
-  return Sim3d(scale, Eigen::Quaterniond(sr / scale).normalized(), m.block<3, 1>(0, 3));
+  return Sim3d(scale, Eigen::Quaterniond(sr / scale).normalized(),
+               m.block<3, 1>(0, 3));
 }
 
 Eigen::Matrix4d Sim3d::ToMatrix() const {
@@ -148,7 +174,8 @@ Sim3d operator*(const Sim3d& c_from_b, const Sim3d& b_from_a) {
                    c_from_b.translation);
 }
 
-Eigen::Vector3d operator*(const Sim3d& b_from_a, const Eigen::Vector3d& x_in_a) {
+Eigen::Vector3d operator*(const Sim3d& b_from_a,
+                          const Eigen::Vector3d& x_in_a) {
   return b_from_a.scale * (b_from_a.rotation * x_in_a) + b_from_a.translation;
 }
 

@@ -11,6 +11,7 @@
 
 #include "dataset/internal/nuscenes_json.h"
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -69,6 +70,7 @@ class TableSax {
   }
   bool binary(json::binary_t&) { return true; }
   bool start_object(std::size_t) {
+    Enter();
     if (skip_ > 0 || InArray() || depth_ >= 2) {
       if (InArray()) field_->array_of_other = true;
       if (field_ && !InArray()) field_->kind = JsonField::kOther;
@@ -87,6 +89,7 @@ class TableSax {
     return true;
   }
   bool end_object() {
+    --nesting_;
     if (skip_ > 0) {
       --skip_;
       return true;
@@ -102,6 +105,7 @@ class TableSax {
     return true;
   }
   bool start_array(std::size_t) {
+    Enter();
     if (skip_ > 0) {
       ++skip_;
       return true;
@@ -126,6 +130,7 @@ class TableSax {
     return true;
   }
   bool end_array() {
+    --nesting_;
     if (skip_ > 0) {
       --skip_;
       return true;
@@ -149,21 +154,29 @@ class TableSax {
     const size_t colon = what.find(": ");
     if (colon != std::string::npos) what = what.substr(colon + 2);
     std::ostringstream os;
-    os << "malformed JSON at byte " << position;
-    const JsonField* current = depth_ == 2 ? record_.Find("token") : nullptr;
-    if (current && current->kind == JsonField::kString &&
-        !current->str.empty()) {
-      os << " (in record " << current->str << ")";
-    } else if (!last_token_.empty()) {
-      os << " (after record " << last_token_ << ")";
-    } else {
-      os << " (before the first record)";
-    }
-    os << ": " << what;
+    os << "malformed JSON at byte " << position << Where() << ": " << what;
     ThrowInputError(path_, os.str());
   }
 
  private:
+  // " (in record T)", " (after record T)" or " (before the first record)".
+  std::string Where() {
+    const JsonField* current = depth_ == 2 ? record_.Find("token") : nullptr;
+    if (current && current->kind == JsonField::kString &&
+        !current->str.empty()) {
+      return " (in record " + current->str + ")";
+    }
+    if (!last_token_.empty()) return " (after record " + last_token_ + ")";
+    return " (before the first record)";
+  }
+  // An array or object opens: deeper than kMaxJsonDepth is an error (the
+  // fast front end leaves such tables to this one).
+  void Enter() {
+    if (++nesting_ > kMaxJsonDepth) {
+      ThrowInputError(path_, "JSON nested more than ", kMaxJsonDepth,
+                      " arrays/objects deep", Where());
+    }
+  }
   [[noreturn]] void Fail(const std::string& what) {
     ThrowInputError(path_, what);
   }
@@ -212,6 +225,7 @@ class TableSax {
   int depth_ = 0;        // 0 outside, 1 in the top array, 2 in a record
   int array_depth_ = 0;  // nesting of arrays inside the current field
   int skip_ = 0;         // > 0 while inside an unsupported nested value
+  int nesting_ = 0;      // arrays and objects open (the top-level one is 1)
   size_t records_ = 0;
   bool finished_ = false;
   std::string last_token_;

@@ -59,6 +59,7 @@
 
 #include "dataset/internal/nuscenes_json.h"
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -68,9 +69,12 @@ namespace {
 namespace od = simdjson::ondemand;
 
 constexpr size_t kPadding = simdjson::SIMDJSON_PADDING;
-// Nesting deeper than this is left to the reference front end (and bounds the
-// recursion of Skip).
-constexpr size_t kMaxDepth = 64;
+// Nesting deeper than kMaxJsonDepth (geometry/util/json_depth.h) is left to
+// the reference front end, which rejects it; this bounds the recursion of
+// Skip, ReadArray and ReadInnerArray (On Demand does not check the depth
+// itself: 110,000 nested arrays overflowed the stack in Skip). Depths: the
+// slice's array is 1, a record 2, a field's array 3, its inner arrays 4.
+constexpr int kRecordDepth = 2;
 
 bool IsSpace(char c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; }
 
@@ -324,27 +328,31 @@ struct SliceParser::Impl {
     }
   }
 
-  // Visits (and so validates) a value whose content the record does not keep.
-  static bool Skip(od::value value) {
+  // Visits (and so validates) a value whose content the record does not keep;
+  // `parent_depth` is the depth of the array or object holding it.
+  static bool Skip(od::value value, int parent_depth) {
     od::json_type type;
     if (value.type().get(type)) return false;
+    const int depth = parent_depth + 1;  // if the value is an array or object
     switch (type) {
       case od::json_type::object: {
+        if (depth > kMaxJsonDepth) return false;
         od::object object;
         if (value.get_object().get(object)) return false;
         for (auto field : object) {
           std::string_view key;
           if (field.error() || field.unescaped_key().get(key)) return false;
-          if (!Skip(field.value())) return false;
+          if (!Skip(field.value(), depth)) return false;
         }
         return true;
       }
       case od::json_type::array: {
+        if (depth > kMaxJsonDepth) return false;
         od::array array;
         if (value.get_array().get(array)) return false;
         for (auto element : array) {
           od::value v;
-          if (element.get(v) || !Skip(v)) return false;
+          if (element.get(v) || !Skip(v, depth)) return false;
         }
         return true;
       }
@@ -389,7 +397,7 @@ struct SliceParser::Impl {
         ++f->row_sizes.back();
       } else {
         f->array_of_other = true;
-        if (!Skip(v)) return false;
+        if (!Skip(v, kRecordDepth + 2)) return false;
       }
     }
     return true;
@@ -425,7 +433,7 @@ struct SliceParser::Impl {
           break;
         default:
           f->array_of_other = true;
-          if (!Skip(v)) return false;
+          if (!Skip(v, kRecordDepth + 1)) return false;
       }
     }
     return true;
@@ -457,7 +465,7 @@ struct SliceParser::Impl {
         return ReadArray(value, f);
       case od::json_type::object:
         f->kind = JsonField::kOther;
-        return Skip(value);
+        return Skip(value, kRecordDepth);
     }
     return false;
   }
@@ -490,6 +498,7 @@ SliceParser::~SliceParser() = default;
 
 bool SliceParser::Parse(const Slice& slice, RecordSink* sink) {
   od::parser& parser = impl_->parser;
+  constexpr size_t kMaxDepth = kMaxJsonDepth;
   if (parser.capacity() < slice.size || parser.max_depth() != kMaxDepth) {
     // Room for any slice of the usual size at once: tables come small first
     // (category.json is 3 KB), and sized to each larger slice the parser's

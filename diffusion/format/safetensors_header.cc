@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <sstream>
+#include <unordered_set>
 
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -30,6 +31,39 @@ std::string ShapeString(const std::vector<int64_t>& shape) {
   os << "]";
   return os.str();
 }
+
+// A JSON value for an error message: a number, bool or null as written, a
+// string cut at 40 bytes, an array or object by its type (never dump() of a
+// container: its size is the input's).
+std::string DescribeValue(const json& v) {
+  if (v.is_array()) return "(an array)";
+  if (v.is_object()) return "(an object)";
+  if (v.is_string()) {
+    const std::string& s = v.get_ref<const std::string&>();
+    if (s.size() > 40) return json(s.substr(0, 40)).dump() + "...";
+  }
+  return v.dump();
+}
+
+// The header's JSON: nlohmann's DOM with the JSON depth limit
+// (geometry/util/json_depth.h), and the first top-level key that repeats
+// (nlohmann would keep the last one silently). Linear: nlohmann's parser
+// callbacks, used before, rescan the parent object at the end of every
+// object (quadratic in the tensor count: 100,000 tensors took minutes).
+class HeaderSax : public internal::DepthLimitedJsonSax {
+ public:
+  using DepthLimitedJsonSax::DepthLimitedJsonSax;
+  bool key(json::string_t& k) {
+    if (depth() == 1 && !seen_.insert(k).second && duplicate_.empty())
+      duplicate_ = k;
+    return DepthLimitedJsonSax::key(k);
+  }
+  const std::string& duplicate() const { return duplicate_; }
+
+ private:
+  std::unordered_set<std::string> seen_;
+  std::string duplicate_;
+};
 
 // Reads a non-negative integer that fits int64 from a JSON value.
 bool AsNonNegative(const json& v, uint64_t* out) {
@@ -75,7 +109,7 @@ SafetensorsEntry ParseTensorEntry(const std::string& path,
     uint64_t dim;
     if (!AsNonNegative(d, &dim)) {
       ThrowInputError(path, "tensor '", name, "' has an invalid shape entry ",
-                      d.dump());
+                      DescribeValue(d));
     }
     e.shape.push_back(static_cast<int64_t>(dim));
     overflow |= __builtin_mul_overflow(numel, dim, &numel);
@@ -169,27 +203,16 @@ SafetensorsHeader ParseSafetensorsHeader(const std::string& path,
   if (header[0] != '{')
     ThrowInputError(path, "safetensors header does not start with '{'");
 
-  // Parse, detecting duplicate top-level keys (nlohmann keeps the last one
-  // silently).
-  std::set<std::string> seen_keys;
-  std::string duplicate;
-  json::parser_callback_t cb = [&](int depth, json::parse_event_t event,
-                                   json& parsed) {
-    if (depth == 1 && event == json::parse_event_t::key) {
-      const std::string key = parsed.get<std::string>();
-      if (!seen_keys.insert(key).second && duplicate.empty()) duplicate = key;
-    }
-    return true;
-  };
   json doc;
+  HeaderSax sax(&doc, path);
   try {
-    doc = json::parse(header, header + n, cb);
+    json::sax_parse(header, header + n, &sax);
   } catch (const json::exception& e) {
     ThrowInputError(path, "safetensors header is not valid JSON (", e.what(),
                     ")");
   }
-  if (!duplicate.empty())
-    ThrowInputError(path, "duplicate tensor name '", duplicate, "'");
+  if (!sax.duplicate().empty())
+    ThrowInputError(path, "duplicate tensor name '", sax.duplicate(), "'");
   if (!doc.is_object())
     ThrowInputError(path, "safetensors header is not a JSON object");
 

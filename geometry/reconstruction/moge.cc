@@ -25,6 +25,7 @@
 #include "geometry/image_io.h"
 #include "geometry/reconstruction/common.h"
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -143,7 +144,7 @@ class MogeReader : public ReconstructionReader {
       nlohmann::json j;
       InputFileStream in(fov_path);
       try {
-        j = nlohmann::json::parse(in);
+        j = internal::ParseJson(in, fov_path);
       } catch (const std::exception& e) {
         ThrowInputError(fov_path, "not readable JSON: ", e.what());
       }

@@ -11,18 +11,20 @@
 #include <string>
 
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
 namespace internal {
 
 // The top-level JSON object of a file (opened with InputFileStream: a folder,
-// FIFO or device is refused naming the path).
+// FIFO or device is refused naming the path; nesting deeper than kMaxJsonDepth
+// is an error).
 inline nlohmann::json ReadJsonObjectFile(const std::string& path) {
   InputFileStream in(path);
   nlohmann::json root;
   try {
-    root = nlohmann::json::parse(in);
+    root = ParseJson(in, path);
   } catch (const nlohmann::json::exception& e) {
     ThrowInputError(path, "malformed JSON (", e.what(), ")");
   }

@@ -69,6 +69,29 @@ TEST(Rigid3d, FromMatrixRejectsNonRotation) {
   EXPECT_THROW(Rigid3d::FromMatrix(m), InputError);
 }
 
+// A transposed pose holds its translation in the bottom row: refused, never
+// read as the identity translation.
+TEST(Rigid3d, FromMatrixRefusesABottomRowOtherThan0001) {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m(3, 0) = 1.0;
+  m(3, 1) = 2.0;
+  m(3, 2) = 3.0;  // the translation of the transposed matrix
+  try {
+    Rigid3d::FromMatrix(m);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bottom row is [1 2 3 1]"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(Sim3d::FromMatrix(m), InputError);
+  m = Eigen::Matrix4d::Identity();
+  m(3, 3) = 2.0;  // a homogeneous scale
+  EXPECT_THROW(Rigid3d::FromMatrix(m), InputError);
+  m(3, 3) = 1.0 + 1e-12;  // rounding is not an error
+  EXPECT_NO_THROW(Rigid3d::FromMatrix(m));
+}
+
 TEST(Rigid3d, AngleAxisRoundTrip) {
   auto& rng = test::Rng();
   std::uniform_real_distribution<double> u(-1.0, 1.0);
