@@ -7,15 +7,188 @@
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
 
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstring>
 #include <exception>
 
 #include "geometry/util/input_file.h"
+#include "geometry/util/size_limits.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
+namespace {
+
+// Little-endian integers of the EXR header.
+int32_t ReadI32(const uint8_t* p) {
+  uint32_t v = 0;
+  for (int k = 0; k < 4; ++k) v |= uint32_t{p[k]} << (8 * k);
+  return static_cast<int32_t>(v);
+}
+
+// Scan lines per chunk of each compression (OpenEXR's ImfCompression.h).
+int LinesPerChunk(int compression) {
+  switch (compression) {
+    case 0:  // NO
+    case 1:  // RLE
+    case 2:  // ZIPS
+      return 1;
+    case 3:  // ZIP
+    case 5:  // PXR24
+      return 16;
+    case 9:  // DWAB
+      return 256;
+    default:  // PIZ, B44, B44A, DWAA
+      return 32;
+  }
+}
+
+// What one part's header declares.
+struct ExrPart {
+  bool has_window = false;
+  int64_t width = 0, height = 0;
+  int64_t bytes_per_pixel = 0;  // all channels, as stored
+  int compression = 0;
+  bool tiled = false;
+  int64_t tile_w = 0, tile_h = 0;
+  int64_t chunk_count = -1;  // multi-part files declare it
+};
+
+// Parses the header (every part's attributes) from `head`, the file's first
+// bytes, and checks each declared size against the limits and the file's
+// `file_size` bytes before OpenEXR sees the file (which sizes its offset table
+// and our frame buffer from them). Throws InputError naming `path`.
+void CheckExrHeader(const std::string& path) {
+  const InputFile in = OpenInputFile(path);
+  const uint64_t file_size = in.size();
+  std::vector<uint8_t> head(static_cast<size_t>(
+      std::min<uint64_t>(file_size, SizeLimits::kMaxExrHeaderBytes)));
+  if (!head.empty() &&
+      ::pread(in.fd(), head.data(), head.size(), 0) !=
+          static_cast<ssize_t>(head.size())) {
+    ThrowInputError(path, "cannot read the EXR header");
+  }
+  GEODRIVE_CHECK_INPUT(head.size() >= 8 && ReadI32(head.data()) == 20000630,
+                       path, ": not a readable EXR file (no EXR magic number)");
+  const uint32_t flags = static_cast<uint32_t>(ReadI32(head.data() + 4));
+  const bool multipart = flags & 0x1000, deep = flags & 0x800;
+  size_t at = 8;
+  const auto truncated = [&]() {
+    if (file_size > head.size()) {
+      ThrowInputError(path, "the EXR header is longer than the limit of ",
+                      SizeLimits::kMaxExrHeaderBytes, " bytes");
+    }
+    ThrowInputError(path, "truncated EXR header (", file_size, " bytes)");
+  };
+  // A NUL-terminated string at `at`.
+  const auto read_string = [&]() {
+    const void* end = at < head.size() ? std::memchr(head.data() + at, 0,
+                                                     head.size() - at)
+                                       : nullptr;
+    if (end == nullptr) truncated();
+    const size_t n = static_cast<const uint8_t*>(end) - (head.data() + at);
+    std::string out(reinterpret_cast<const char*>(head.data() + at), n);
+    at += n + 1;
+    return out;
+  };
+  std::vector<ExrPart> parts;
+  while (true) {
+    ExrPart part;
+    while (true) {
+      const std::string name = read_string();
+      if (name.empty()) break;
+      const std::string type = read_string();
+      if (at + 4 > head.size()) truncated();
+      const int32_t size = ReadI32(head.data() + at);
+      at += 4;
+      GEODRIVE_CHECK_INPUT(size >= 0, path, ": EXR attribute '", name,
+                           "' declares a size of ", size, " bytes");
+      if (at + static_cast<uint64_t>(size) > head.size()) truncated();
+      const uint8_t* v = head.data() + at;
+      if (name == "dataWindow" && type == "box2i" && size == 16) {
+        part.has_window = true;
+        part.width = int64_t{ReadI32(v + 8)} - ReadI32(v) + 1;
+        part.height = int64_t{ReadI32(v + 12)} - ReadI32(v + 4) + 1;
+      } else if (name == "channels" && type == "chlist") {
+        // Per channel: name, pixel type, pLinear + 3 reserved, x/y sampling.
+        size_t c = 0;
+        while (c < static_cast<size_t>(size) && v[c] != 0) {
+          const void* end = std::memchr(v + c, 0, size - c);
+          GEODRIVE_CHECK_INPUT(end != nullptr, path,
+                               ": malformed EXR channel list");
+          c = static_cast<const uint8_t*>(end) - v + 1;
+          GEODRIVE_CHECK_INPUT(c + 16 <= static_cast<size_t>(size), path,
+                               ": malformed EXR channel list");
+          part.bytes_per_pixel += ReadI32(v + c) == 1 ? 2 : 4;
+          c += 16;
+        }
+      } else if (name == "compression" && type == "compression" &&
+                 size >= 1) {
+        part.compression = v[0];
+      } else if (name == "tiles" && type == "tiledesc" && size >= 8) {
+        part.tiled = true;
+        part.tile_w = static_cast<uint32_t>(ReadI32(v));
+        part.tile_h = static_cast<uint32_t>(ReadI32(v + 4));
+      } else if (name == "chunkCount" && type == "int" && size == 4) {
+        part.chunk_count = ReadI32(v);
+      }
+      at += static_cast<size_t>(size);
+    }
+    parts.push_back(part);
+    if (!multipart) break;
+    if (at < head.size() && head[at] == 0) break;  // the empty header
+  }
+  const uint64_t header_end = at + (multipart ? 1 : 0);
+  const uint64_t after_header = file_size > header_end ? file_size - header_end : 0;
+  uint64_t min_chunks = 0, pixel_bytes = 0;
+  bool uncompressed = true;
+  for (const ExrPart& p : parts) {
+    GEODRIVE_CHECK_INPUT(p.has_window, path,
+                         ": the EXR header has no dataWindow");
+    GEODRIVE_CHECK_INPUT(
+        p.width >= 1 && p.height >= 1 &&
+            p.width <= SizeLimits::kMaxImageSide &&
+            p.height <= SizeLimits::kMaxImageSide &&
+            p.width * p.height <= SizeLimits::kMaxImagePixels,
+        path, ": data window ", p.width, "x", p.height,
+        " is outside the reader's limit (1..", SizeLimits::kMaxImageSide,
+        " a side, ", SizeLimits::kMaxImagePixels, " pixels)");
+    int64_t chunks = 0;
+    if (p.chunk_count >= 0) {
+      chunks = p.chunk_count;
+    } else if (p.tiled || (flags & 0x200)) {
+      GEODRIVE_CHECK_INPUT(p.tile_w >= 1 && p.tile_h >= 1, path,
+                           ": EXR tiles of ", p.tile_w, "x", p.tile_h);
+      chunks = ((p.width + p.tile_w - 1) / p.tile_w) *
+               ((p.height + p.tile_h - 1) / p.tile_h);
+    } else {
+      const int lines = LinesPerChunk(p.compression);
+      chunks = (p.height + lines - 1) / lines;
+    }
+    min_chunks += static_cast<uint64_t>(std::max<int64_t>(chunks, 0));
+    pixel_bytes += static_cast<uint64_t>(p.width * p.height) *
+                   static_cast<uint64_t>(p.bytes_per_pixel);
+    uncompressed = uncompressed && p.compression == 0;
+  }
+  // Each chunk has an 8-byte offset and at least an 8-byte chunk header.
+  CheckDeclaredSize(path, "the EXR header's chunk table",
+                    SaturatingMul(min_chunks, 16), after_header,
+                    std::numeric_limits<uint64_t>::max());
+  if (deep) return;  // sample counts vary per pixel
+  if (uncompressed) {
+    CheckDeclaredSize(path, "the EXR data window", pixel_bytes, after_header,
+                      std::numeric_limits<uint64_t>::max());
+  } else {
+    CheckCompressionRatio(path, "the EXR data window", pixel_bytes,
+                          after_header);
+  }
+}
+
+}  // namespace
 
 std::vector<std::string> ExrChannels(const std::string& path) {
-  CheckInputFile(path);  // OpenEXR opens the path itself
+  CheckExrHeader(path);  // OpenEXR opens the path itself
   try {
     Imf::InputFile file(path.c_str());
     std::vector<std::string> names;
@@ -32,7 +205,7 @@ cv::Mat ReadExr(const std::string& path,
                 const std::vector<std::string>& channels) {
   GEODRIVE_CHECK_INPUT(!channels.empty() && channels.size() <= 4, path,
                        ": read 1 to 4 channels");
-  CheckInputFile(path);
+  CheckExrHeader(path);  // every size, before OpenEXR or we allocate
   try {
     Imf::InputFile file(path.c_str());
     const Imath::Box2i dw = file.header().dataWindow();

@@ -9,8 +9,10 @@
 #include <fstream>
 #include <iterator>
 #include <regex>
+#include <unordered_map>
 
 #include "geometry/util/input_file.h"
+#include "geometry/util/size_limits.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -19,20 +21,27 @@ struct NpzReader::Impl {
   std::string path;
   zip_t* archive = nullptr;
   std::vector<std::string> keys;
-  std::vector<zip_uint64_t> index;  // member index of each key
+  // Member index and uncompressed size of each key (checked on opening).
+  struct Member {
+    zip_uint64_t index = 0;
+    uint64_t size = 0;
+  };
+  std::unordered_map<std::string, Member> members;
 
   ~Impl() {
     if (archive) zip_discard(archive);  // read-only: nothing to write back
   }
 
-  zip_uint64_t MemberOf(const std::string& key) const {
-    const auto it = std::find(keys.begin(), keys.end(), key);
-    if (it == keys.end()) {
+  const Member& MemberOf(const std::string& key) const {
+    const auto it = members.find(key);
+    if (it == members.end()) {
       std::string have;
-      for (const std::string& k : keys) have += (have.empty() ? "" : ", ") + k;
+      for (size_t i = 0; i < keys.size() && i < 20; ++i)
+        have += (have.empty() ? "" : ", ") + keys[i];
+      if (keys.size() > 20) have += ", ... (" + std::to_string(keys.size()) + ")";
       ThrowInputError(path, "no array '", key, "' (it has: ", have, ")");
     }
-    return index[static_cast<size_t>(it - keys.begin())];
+    return it->second;
   }
 
   std::string What(const std::string& key) const {
@@ -41,16 +50,15 @@ struct NpzReader::Impl {
 
   // Reads up to `limit` bytes of member `key` (all of it by default), checking
   // the size libzip reports and, for whole reads, the CRC.
+  // The member's size was checked against its compressed bytes, the file and
+  // the limits when the archive was opened (CheckMembers).
   std::vector<uint8_t> ReadMember(const std::string& key,
                                   uint64_t limit) const {
-    const zip_uint64_t i = MemberOf(key);
+    const Member& member = MemberOf(key);
+    const zip_uint64_t i = member.index;
     zip_stat_t st;
     zip_stat_init(&st);
-    if (zip_stat_index(archive, i, 0, &st) != 0 ||
-        !(st.valid & ZIP_STAT_SIZE)) {
-      ThrowInputError(What(key),
-                      "cannot read the member's size: ", zip_strerror(archive));
-    }
+    st.size = member.size;
     const uint64_t want = std::min<uint64_t>(st.size, limit);
     zip_file_t* file = zip_fopen_index(archive, i, 0);
     if (!file) {
@@ -100,19 +108,50 @@ NpzReader::NpzReader(const std::string& path) : impl_(new Impl) {
     zip_error_fini(&e);
     ThrowInputError(path, "not a readable .npz (zip) archive: ", why);
   }
+  // Every declared size is checked before any member is inflated: the
+  // member count, each member's size against its compressed bytes (the
+  // ratio) and the limit, the compressed bytes together against the file (no
+  // two entries share data), the sizes together against the archive limit.
   const zip_int64_t n = zip_get_num_entries(impl_->archive, 0);
+  CheckDeclaredCount(path, "the archive", static_cast<uint64_t>(n),
+                     SizeLimits::kMaxArchiveMembers);
+  const uint64_t file_size = CheckInputFile(path);
+  uint64_t compressed_total = 0, uncompressed_total = 0;
+  impl_->keys.reserve(static_cast<size_t>(n));
+  impl_->members.reserve(static_cast<size_t>(n));
   for (zip_int64_t i = 0; i < n; ++i) {
-    const char* name =
-        zip_get_name(impl_->archive, static_cast<zip_uint64_t>(i), 0);
-    if (!name) continue;
+    const zip_uint64_t index = static_cast<zip_uint64_t>(i);
+    zip_stat_t st;
+    zip_stat_init(&st);
+    if (zip_stat_index(impl_->archive, index, 0, &st) != 0 || !st.name ||
+        !(st.valid & ZIP_STAT_SIZE) || !(st.valid & ZIP_STAT_COMP_SIZE)) {
+      ThrowInputError(path, "cannot read the sizes of member ", i, ": ",
+                      zip_strerror(impl_->archive));
+    }
+    const std::string name = st.name;
+    const std::string member = "member '" + name + "'";
+    CheckDeclaredSize(path, member + " (compressed)", st.comp_size,
+                      file_size - compressed_total, file_size);
+    compressed_total += st.comp_size;
+    CheckDeclaredSize(path, member, st.size, SizeLimits::kMaxMemberBytes,
+                      SizeLimits::kMaxMemberBytes);
+    if ((st.valid & ZIP_STAT_COMP_METHOD) && st.comp_method == ZIP_CM_STORE) {
+      GEODRIVE_CHECK_INPUT(st.size == st.comp_size, path, ": stored ", member,
+                           " declares ", st.size, " bytes but holds ",
+                           st.comp_size);
+    }
+    CheckCompressionRatio(path, member, st.size, st.comp_size);
+    uncompressed_total += st.size;
+    CheckDeclaredSize(path, "the archive", uncompressed_total,
+                      SizeLimits::kMaxArchiveBytes,
+                      SizeLimits::kMaxArchiveBytes);
     std::string key = name;
     if (key.size() > 4 && key.compare(key.size() - 4, 4, ".npy") == 0)
       key.resize(key.size() - 4);
-    GEODRIVE_CHECK_INPUT(std::find(impl_->keys.begin(), impl_->keys.end(),
-                                   key) == impl_->keys.end(),
-                         path, ": member '", name, "' appears twice");
+    const bool added =
+        impl_->members.emplace(key, Impl::Member{index, st.size}).second;
+    GEODRIVE_CHECK_INPUT(added, path, ": member '", name, "' appears twice");
     impl_->keys.push_back(key);
-    impl_->index.push_back(static_cast<zip_uint64_t>(i));
   }
 }
 
@@ -123,8 +162,7 @@ const std::string& NpzReader::path() const { return impl_->path; }
 const std::vector<std::string>& NpzReader::Keys() const { return impl_->keys; }
 
 bool NpzReader::Has(const std::string& key) const {
-  return std::find(impl_->keys.begin(), impl_->keys.end(), key) !=
-         impl_->keys.end();
+  return impl_->members.count(key) != 0;
 }
 
 NpyHeader NpzReader::Header(const std::string& key) const {
@@ -138,13 +176,20 @@ NpyArray NpzReader::Read(const std::string& key,
   // Header first: the declared array must fit the limit before the member
   // is decompressed into memory.
   const NpyHeader header = Header(key);
-  const uint64_t declared =
-      static_cast<uint64_t>(header.NumElements()) * NpyDtypeSize(header.dtype);
+  const uint64_t declared = SaturatingMul(
+      static_cast<uint64_t>(header.NumElements()), NpyDtypeSize(header.dtype));
   if (declared > options.max_bytes) {
     ThrowInputError(impl_->What(key), "array of ", declared,
                     " bytes exceeds the limit of ", options.max_bytes,
                     " bytes");
   }
+  // The shape must fit the member's own (checked) size: a header declaring
+  // more than the member holds is refused before the member is inflated.
+  const uint64_t member_size = impl_->MemberOf(key).size;
+  const uint64_t data_size =
+      member_size > header.data_offset ? member_size - header.data_offset : 0;
+  CheckDeclaredSize(impl_->What(key), "the array", declared, data_size,
+                    options.max_bytes);
   const std::vector<uint8_t> bytes =
       impl_->ReadMember(key, header.data_offset + declared);
   return ParseNpy(impl_->What(key), bytes.data(), bytes.size(), options);
