@@ -4,8 +4,11 @@
 // written under $TMPDIR. Each input's first byte picks one of the 13 tables
 // (modulo 13), the rest of the input replaces that table's file, and the whole
 // dataset is loaded and validated (cross-table references included); the table
-// is then restored. Seeds: scripts/run_fuzz.sh writes the 13 valid tables,
-// each behind its selector byte.
+// is then restored. Seeds (fuzz/corpus/nuscenes_tables/): the 13 valid tables
+// (fuzz/make_seeds.py), each behind its selector byte, and tables nested past
+// the JSON depth limit (deep-*: 30,000 arrays or 8,000 objects in a field, in a
+// matrix row, around the whole table; one level below and above the limit).
+// Dictionary: fuzz/dict/nuscenes_tables.dict (JSON tokens, field names).
 #include <fstream>
 #include <sstream>
 #include <vector>

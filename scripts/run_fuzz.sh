@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs every libFuzzer target of a fuzz build for a fixed time on a scratch copy
-# of its seed corpus (fuzz/corpus/<target>/), so the committed seeds never change.
+# of its seed corpus (fuzz/corpus/<target>/), so the committed seeds never change,
+# with its dictionary (fuzz/dict/<target>.dict) when it has one.
 #
 # Usage: bash scripts/run_fuzz.sh BUILD_DIR [SECONDS_PER_TARGET=30] [TARGET...]
 #   BUILD_DIR  a build configured with -DGEODRIVE_FUZZ=ON (scripts/run_sanitizers.sh makes one)
@@ -50,9 +51,11 @@ run_target() {
   rm -rf "$dir" && mkdir -p "$dir/corpus" "$dir/findings"
   [[ -d fuzz/corpus/$t ]] && cp fuzz/corpus/"$t"/* "$dir/corpus/"
   log="$dir/fuzz.log"
+  dict=()
+  [[ -f fuzz/dict/$t.dict ]] && dict=(-dict="fuzz/dict/$t.dict")
   # -malloc_limit_mb: a reader that allocates more than this for an input of at most
   # max_len bytes has trusted a declared size (issue 19): a finding.
-  "$bin" "$dir/corpus" "${limits[@]}" -rss_limit_mb=2560 \
+  "$bin" "$dir/corpus" "${limits[@]}" "${dict[@]}" -rss_limit_mb=2560 \
     -malloc_limit_mb=1024 -max_len=65536 -print_final_stats=1 \
     -artifact_prefix="$dir/findings/" >"$log" 2>&1 &
   pid=$!
