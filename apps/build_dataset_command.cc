@@ -59,6 +59,13 @@ int Run(Args& a) {
   BuildDatasetOptions& o = a.options;
   ParseShard(a.shard, &o.shard_index, &o.shard_count);
   ParseSizeHxW(a.size, "--size", &o.height, &o.width);
+  // The lidar-dense frame-0 depth's memory, from the option alone (a 16:9
+  // camera, nuScenes' CAM_FRONT); each clip checks its own camera again.
+  if (o.geometry == "lidar-dense") {
+    CheckLidarDenseMemory(
+        "--lidar-dense-width " + std::to_string(o.lidar_dense_width),
+        o.lidar_dense_width, (int64_t{o.lidar_dense_width} * 9 + 8) / 16);
+  }
   if (!a.clips.empty()) {
     std::string cur;
     for (char c : a.clips + ",") {

@@ -10,6 +10,7 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <thread>
 #include <utility>
 
 #include "apps/cli/cli.h"
@@ -22,11 +23,81 @@
 #include "geometry/trajectory_io.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
+#include "geometry/util/memory.h"
 #include "geometry/util/status.h"
+#include "render/video/ffmpeg_decode.h"
 #include "render/video/video_io.h"
 
 namespace geodrive {
 namespace {
+
+// Compares one pair a chunk of frames at a time, the two videos decoded side
+// by side: memory holds a chunk of each (max(8, 2 x threads) frames), whatever
+// their length. The scores are those of CompareVideos on the whole videos.
+void ComparePairStreaming(const VideoPairSource& pair,
+                          bool image,
+                          LpipsModel* lpips,
+                          const FrameMetricsOptions& options,
+                          VideoEvalRecord* record) {
+  VideoFrameStream pred(pair.pred_path), gt(pair.gt_path);
+  const int threads =
+      options.num_threads > 0
+          ? options.num_threads
+          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const size_t chunk = static_cast<size_t>(std::max(8, 2 * threads));
+  std::vector<cv::Mat> p, g;
+  double lpips_sum = 0;
+  int64_t done = 0;
+  while (true) {
+    p.clear();
+    g.clear();
+    cv::Mat frame;
+    while (p.size() < chunk && pred.Next(&frame)) p.push_back(frame);
+    while (g.size() < chunk && gt.Next(&frame)) g.push_back(frame);
+    if (p.size() != g.size()) {  // count the rest of the longer one
+      while (pred.Next(&frame)) {
+      }
+      while (gt.Next(&frame)) {
+      }
+      ThrowInputError(pair.id, "frame counts differ (predicted ",
+                      pred.frames_read(), ", ground truth ", gt.frames_read(),
+                      ")");
+    }
+    if (p.empty()) break;
+    if (image) {
+      const VideoScores s = CompareVideos(p, g, options, pair.id, done);
+      record->scores.width = s.width;
+      record->scores.height = s.height;
+      record->scores.frames.insert(record->scores.frames.end(),
+                                   s.frames.begin(), s.frames.end());
+    }
+    if (lpips) {
+      for (size_t i = 0; i < p.size(); ++i) {
+        record->lpips_per_frame.push_back(lpips->Distance(p[i], g[i]));
+        lpips_sum += record->lpips_per_frame.back();
+      }
+    }
+    done += static_cast<int64_t>(p.size());
+  }
+  if (image) {
+    record->scores.mean = MeanOfFrames(record->scores.frames);
+    std::cerr << pair.id << ": " << record->scores.BriefReport() << "\n";
+  }
+  if (lpips) {
+    record->lpips = lpips_sum / static_cast<double>(done);
+    std::cerr << pair.id << ": lpips " << record->lpips << "\n";
+  }
+}
+
+// Decoded bytes of a video file as its header declares them (0 for a frame
+// folder or a container that does not declare its frame count).
+uint64_t DeclaredDecodedBytes(const std::string& path) {
+  if (path.empty() || !IsVideoFile(path)) return 0;
+  const VideoFileReader reader(path);
+  return static_cast<uint64_t>(reader.declared_frames()) *
+         static_cast<uint64_t>(
+             VideoFrameBytes(reader.width(), reader.height()));
+}
 
 struct EvalArgs {
   std::string pred, gt, out, metrics = "psnr,ssim";
@@ -261,6 +332,21 @@ int RunEval(const EvalArgs& args) {
       record.id = pair.id;
       record.pred_path = pair.pred_path;
       record.gt_path = pair.gt_path;
+      if (!fid && !fvd) {  // frame by frame: stream both videos
+        ComparePairStreaming(pair, image, lpips_net.get(),
+                             report.frame_options, &record);
+        report.videos.push_back(std::move(record));
+        continue;
+      }
+      // FID/FVD take whole videos: what both hold decoded is checked against
+      // the memory available before either is decoded.
+      const uint64_t need = DeclaredDecodedBytes(pair.pred_path) +
+                            (need_gt ? DeclaredDecodedBytes(pair.gt_path) : 0);
+      const uint64_t available = AvailableMemoryBytes();
+      GEODRIVE_CHECK_INPUT(need <= available, pair.id,
+                           ": fid/fvd hold the videos decoded whole, about ",
+                           need >> 20, " MiB, and ", available >> 20,
+                           " MiB are available");
       const std::vector<cv::Mat> pred = ReadVideoFrames(pair.pred_path);
       const std::vector<cv::Mat> gt =
           need_gt ? ReadVideoFrames(pair.gt_path) : std::vector<cv::Mat>();

@@ -1,9 +1,11 @@
 #include "dataset/scene_source.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
 #include "geometry/reconstruction.h"
+#include "geometry/util/memory.h"
 #include "geometry/util/status.h"
 #include "render/footprint.h"
 
@@ -49,6 +51,22 @@ Trajectory ConditionScene::PlaceTrajectory(const Trajectory& user) const {
   if (identity) return placed;  // keeps the poses bit-exact
   for (auto& pose : placed.world_from_cam) pose = scene_from_cam0 * pose;
   return placed;
+}
+
+uint64_t EstimateLidarDenseBytes(int64_t width, int64_t height) {
+  return static_cast<uint64_t>(std::max<int64_t>(width, 0)) *
+         static_cast<uint64_t>(std::max<int64_t>(height, 0)) *
+         kLidarDenseBytesPerPixel;
+}
+
+void CheckLidarDenseMemory(const std::string& what,
+                           int64_t width,
+                           int64_t height) {
+  const uint64_t need = EstimateLidarDenseBytes(width, height);
+  const uint64_t available = AvailableMemoryBytes();
+  GEODRIVE_CHECK_INPUT(need <= available, what, ": a lidar-dense frame-0 depth of ", width,
+                       "x", height, " needs about ", (need + (1 << 20) - 1) >> 20,
+                       " MiB, and ", available >> 20, " MiB are available");
 }
 
 bool SceneSourceOptions::Check() const {

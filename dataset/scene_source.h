@@ -174,6 +174,20 @@ struct SceneSourceOptions {
   bool Check() const;
 };
 
+// Bytes the lidar-dense source holds for a frame-0 depth of `width` x
+// `height`: per pixel the resized image, the sparse and completed depths (and
+// the held-out run's), the completion's scratch images and the unprojected
+// cloud (positions and colours, with a vector's growth), about
+// kLidarDenseBytesPerPixel.
+constexpr uint64_t kLidarDenseBytesPerPixel = 80;
+uint64_t EstimateLidarDenseBytes(int64_t width, int64_t height);
+// Throws InputError naming `what` (e.g. "--lidar-dense-width 16384") with the
+// estimate when a `width` x `height` lidar-dense depth does not fit in the
+// memory available (AvailableMemoryBytes, geometry/util/memory.h).
+void CheckLidarDenseMemory(const std::string& what,
+                           int64_t width,
+                           int64_t height);
+
 struct SceneInputs {
   // The clip the scene is built for; null for CLI inputs without a clip.
   const DriveClip* clip = nullptr;

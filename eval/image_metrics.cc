@@ -550,7 +550,8 @@ std::string VideoScores::BriefReport() const {
 VideoScores CompareVideos(const std::vector<cv::Mat>& pred,
                           const std::vector<cv::Mat>& gt,
                           const FrameMetricsOptions& options,
-                          const std::string& what) {
+                          const std::string& what,
+                          int64_t first_frame) {
   options.Check();
   GEODRIVE_CHECK_INPUT(!pred.empty(), what,
                        ": the predicted video has no frames");
@@ -560,7 +561,8 @@ VideoScores CompareVideos(const std::vector<cv::Mat>& pred,
                        ": frame counts differ (predicted ", pred.size(),
                        ", ground truth ", gt.size(), ")");
   for (size_t i = 0; i < pred.size(); ++i) {
-    const std::string frame = what + " frame " + std::to_string(i);
+    const std::string frame =
+        what + " frame " + std::to_string(first_frame + int64_t(i));
     CheckPair(pred[i], gt[i], frame);
     GEODRIVE_CHECK_INPUT(pred[i].size() == pred[0].size(), frame, ": size ",
                          pred[i].cols, "x", pred[i].rows,
@@ -583,7 +585,8 @@ VideoScores CompareVideos(const std::vector<cv::Mat>& pred,
   for (int i = 0; i < n; ++i) {
     try {
       FrameScores& f = scores.frames[i];
-      const std::string frame = what + " frame " + std::to_string(i);
+      const std::string frame =
+          what + " frame " + std::to_string(first_frame + i);
       f.psnr_rgb = options.psnr
                        ? Psnr(pred[i], gt[i], options.psnr_options, frame)
                        : kNaN;
@@ -602,15 +605,20 @@ VideoScores CompareVideos(const std::vector<cv::Mat>& pred,
     }
   }
   if (!error.empty()) throw InputError(error);
-  FrameScores& m = scores.mean;
-  m = FrameScores{0, 0, 0, 0};
-  for (const FrameScores& f : scores.frames) {
+  scores.mean = MeanOfFrames(scores.frames);
+  return scores;
+}
+
+FrameScores MeanOfFrames(const std::vector<FrameScores>& frames) {
+  FrameScores m{0, 0, 0, 0};
+  const int n = static_cast<int>(frames.size());
+  for (const FrameScores& f : frames) {
     m.psnr_rgb += f.psnr_rgb / n;
     m.ssim_rgb += f.ssim_rgb / n;
     m.psnr_y += f.psnr_y / n;
     m.ssim_y += f.ssim_y / n;
   }
-  return scores;
+  return m;
 }
 
 }  // namespace geodrive

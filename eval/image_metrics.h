@@ -111,10 +111,17 @@ struct VideoScores {
 };
 
 // Compares `pred` with `gt` frame by frame. Throws InputError (naming `what`)
-// for empty videos, different frame counts, sizes or types.
+// for empty videos, different frame counts, sizes or types. `first_frame` is
+// the index of pred[0] in its video (for messages, when a long video is
+// compared a chunk at a time).
 VideoScores CompareVideos(const std::vector<cv::Mat>& pred,
                           const std::vector<cv::Mat>& gt,
                           const FrameMetricsOptions& options = {},
-                          const std::string& what = "video");
+                          const std::string& what = "video",
+                          int64_t first_frame = 0);
+
+// The per-video mean of `frames` as CompareVideos computes it (the same sums
+// in the same order, so chunked comparisons give the same figures).
+FrameScores MeanOfFrames(const std::vector<FrameScores>& frames);
 
 }  // namespace geodrive

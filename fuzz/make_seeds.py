@@ -72,6 +72,94 @@ def npz_seeds():
         out("npz", name, b.getvalue())
 
 
+def npz_zip_seeds():
+    """Zip-level layouts: stored, deflated, many members, a string member, a
+    bzip2 member (a small bomb), a member declaring more than it holds."""
+    import io
+    import zipfile
+    a = np.arange(12, dtype=np.float32).reshape(3, 4)
+    for name, save in (("stored.npz", np.savez), ("deflated.npz", np.savez_compressed)):
+        b = io.BytesIO()
+        save(b, depth=a, units=np.array("metres"))
+        out("npz_zip", name, b.getvalue())
+    b = io.BytesIO()
+    np.savez(b, **{"m%d" % i: np.zeros(1, np.uint8) for i in range(40)})
+    out("npz_zip", "many.npz", b.getvalue())
+    b = io.BytesIO()
+    with zipfile.ZipFile(b, "w", zipfile.ZIP_BZIP2) as z:
+        z.writestr("zeros.npy", npy_bytes(np.zeros(1 << 18, np.float32)))
+    out("npz_zip", "bzip2_bomb.npz", b.getvalue())
+    b = io.BytesIO()
+    with zipfile.ZipFile(b, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("zeros.npy", npy_bytes(np.zeros(1 << 16, np.float32)))
+    out("npz_zip", "deflate_ratio.npz", b.getvalue())
+    data = bytearray(b.getvalue())
+    for sig, at in ((b"PK\x03\x04", 22), (b"PK\x01\x02", 24)):
+        i = data.find(sig)
+        data[i + at:i + at + 4] = struct.pack("<I", 3 << 30)
+    out("npz_zip", "declares_3gib.npz", bytes(data))
+
+
+def exr_header_seeds():
+    """Scanline files (none, ZIPS, ZIP), a tiled and a multi-part header: the
+    attributes OpenEXR requires, channel Z or X, Y, Z."""
+    import zlib
+
+    def attr(name, typ, value):
+        return name.encode() + b"\0" + typ.encode() + b"\0" + struct.pack("<i", len(value)) + value
+
+    def chlist(names):
+        return b"".join(n.encode() + b"\0" + struct.pack("<i4xii", 2, 1, 1) for n in names) + b"\0"
+
+    def header(w, h, comp, names, extra=b""):
+        box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
+        return (attr("channels", "chlist", chlist(names)) +
+                attr("compression", "compression", bytes([comp])) +
+                attr("dataWindow", "box2i", box) + attr("displayWindow", "box2i", box) +
+                attr("lineOrder", "lineOrder", b"\0") +
+                attr("pixelAspectRatio", "float", struct.pack("<f", 1)) +
+                attr("screenWindowCenter", "v2f", struct.pack("<ff", 0, 0)) +
+                attr("screenWindowWidth", "float", struct.pack("<f", 1)) + extra)
+
+    def scanline(w, h, names, comp):
+        head = struct.pack("<ii", 20000630, 2) + header(w, h, comp, names) + b"\0"
+        rows = []
+        for y in range(h):
+            raw = b"".join(struct.pack("<%df" % w, *[1.0 + y + x for x in range(w)]) for _ in names)
+            if comp == 2:  # ZIPS: byte split + predictor, then zlib
+                t = bytearray(len(raw))
+                t[0::1] = raw
+                half = (len(raw) + 1) // 2
+                t[:half] = raw[0::2]
+                t[half:] = raw[1::2]
+                p = t[0]
+                for i in range(1, len(t)):
+                    d = (t[i] - p + 128 + 256) & 0xFF
+                    p = t[i]
+                    t[i] = d
+                packed = zlib.compress(bytes(t))
+                raw = packed if len(packed) < len(raw) else raw
+            rows.append(struct.pack("<ii", y, len(raw)) + raw)
+        offsets, at = [], len(head) + 8 * h
+        for r in rows:
+            offsets.append(at)
+            at += len(r)
+        return head + b"".join(struct.pack("<Q", o) for o in offsets) + b"".join(rows)
+
+    out("exr_header", "z_none.exr", scanline(4, 3, ["Z"], 0))
+    out("exr_header", "xyz_none.exr", scanline(3, 2, ["X", "Y", "Z"], 0))
+    out("exr_header", "z_zips.exr", scanline(8, 2, ["Z"], 2))
+    tiles = attr("tiles", "tiledesc", struct.pack("<IIB", 2, 2, 0))
+    out("exr_header", "tiled_header.exr", struct.pack("<ii", 20000630, 2 | 0x200) +
+        header(4, 4, 0, ["Z"], tiles) + b"\0" + bytes(64))
+    part = attr("name", "string", b"p") + attr("type", "string", b"scanlineimage") + \
+        attr("chunkCount", "int", struct.pack("<i", 2))
+    out("exr_header", "multipart_header.exr", struct.pack("<ii", 20000630, 2 | 0x1000) +
+        header(2, 2, 0, ["Z"], part) + b"\0\0" + bytes(64))
+    out("exr_header", "huge_window.exr", struct.pack("<ii", 20000630, 2) +
+        header(16384, 16384, 0, ["Z"]) + b"\0" + bytes(4096))
+
+
 def reconstruction_seeds():
     """Each npz format's layout, small (2 frames of 3x4)."""
     import io
@@ -278,6 +366,8 @@ if __name__ == "__main__":
         sys.exit(0)
     npy_seeds()
     npz_seeds()
+    npz_zip_seeds()
+    exr_header_seeds()
     reconstruction_seeds()
     ply_seeds()
     pcd_seeds()

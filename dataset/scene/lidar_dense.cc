@@ -103,6 +103,10 @@ class LidarDenseSceneSource : public SceneSource {
         std::max(1, static_cast<int>(std::lround(static_cast<double>(width) *
                                                  frame0.camera.height /
                                                  frame0.camera.width)));
+    // What the frame-0 depth holds, checked before any of it is allocated.
+    CheckLidarDenseMemory(
+        clip.id + ": lidar-dense width " + std::to_string(width), width,
+        height);
     const PinholeCamera camera = ResizeCamera(frame0.camera, width, height);
     cv::Mat rgb;
     cv::resize(image, rgb, cv::Size(width, height), 0, 0, cv::INTER_AREA);

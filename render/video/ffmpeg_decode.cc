@@ -8,14 +8,17 @@ extern "C" {
 #include <libswscale/swscale.h>
 }
 
+#include <algorithm>
 #include <cmath>
 #include <cstdarg>
+#include <deque>
 #include <cstdio>
 #include <cstring>
 #include <mutex>
 #include <opencv2/imgproc.hpp>
 
 #include "geometry/util/input_file.h"
+#include "geometry/util/size_limits.h"
 #include "geometry/util/status.h"
 #include "render/video/ffmpeg_log.h"
 
@@ -32,6 +35,11 @@ struct Decoder {
   int stream = -1;
   int rotation = 0;  // clockwise degrees to apply: 0, 90, 180, 270
   int64_t frame_bytes = 0;
+  int first_width = 0, first_height = 0;  // of the first decoded frame
+  int64_t received = 0;                   // frames decoded
+  int64_t taken = 0;                      // frames handed out
+  bool drained = false;                   // the decoder has given its last
+  std::deque<cv::Mat> pending;            // decoded, not yet handed out
   ~Decoder() {
     if (sws) sws_freeContext(sws);
     if (bgr) av_frame_free(&bgr);
@@ -98,11 +106,6 @@ void FindVideoStream(const std::string& path, Decoder* d) {
   AVStream* st = fmt->streams[d->stream];
   CheckFrameSize(path, st->codecpar->width, st->codecpar->height);
   d->frame_bytes = int64_t{3} * st->codecpar->width * st->codecpar->height;
-  GEODRIVE_CHECK_INPUT(
-      st->nb_frames <= VideoReadLimits::kMaxDecodedBytes / d->frame_bytes, path,
-      ": ", st->nb_frames, " frames of ", st->codecpar->width, "x",
-      st->codecpar->height, " are over the reader's limit of ",
-      VideoReadLimits::kMaxDecodedBytes >> 30, " GiB of decoded frames");
   // A file cut short: its own index points past the end.
   const int64_t file_size = fmt->pb ? avio_size(fmt->pb) : -1;
   const int entries = avformat_index_get_entries_count(st);
@@ -214,85 +217,154 @@ cv::Mat ConvertFrame(const std::string& path, Decoder* d) {
   return rgb;
 }
 
-// Takes every frame the decoder has ready.
-void ReceiveFrames(const std::string& path,
-                   Decoder* d,
-                   std::vector<cv::Mat>* frames) {
+// Takes every frame the decoder has ready into `d->pending`.
+void ReceiveFrames(const std::string& path, Decoder* d) {
   while (true) {
     const int r = avcodec_receive_frame(d->codec, d->frame);
     if (r == AVERROR(EAGAIN) || r == AVERROR_EOF) return;
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data at frame ",
-                         frames->size(), " (", FfmpegErrorDetail(r), ")");
+    const int64_t index = d->received;
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data at frame ", index,
+                         " (", FfmpegErrorDetail(r), ")");
     GEODRIVE_CHECK_INPUT(d->frame->decode_error_flags == 0 &&
                              !(d->frame->flags & AV_FRAME_FLAG_CORRUPT),
-                         path, ": corrupt video data at frame ", frames->size(),
+                         path, ": corrupt video data at frame ", index,
                          " (the decoder concealed errors)");
     const AVFrame* f = d->frame;
     CheckFrameSize(path, f->width, f->height);
-    if (!frames->empty()) {
-      const cv::Mat& first = frames->front();
-      const bool swapped = d->rotation == 90 || d->rotation == 270;
-      const int w = swapped ? first.rows : first.cols;
-      const int h = swapped ? first.cols : first.rows;
-      GEODRIVE_CHECK_INPUT(f->width == w && f->height == h, path, ": frame ",
-                           frames->size(), " is ", f->width, "x", f->height,
-                           " but frame 0 is ", w, "x", h);
+    if (d->first_width == 0) {
+      d->first_width = f->width;
+      d->first_height = f->height;
     }
-    const int64_t bytes = int64_t{3} * f->width * f->height;
     GEODRIVE_CHECK_INPUT(
-        static_cast<int64_t>(frames->size() + 1) <=
-            VideoReadLimits::kMaxDecodedBytes / bytes,
-        path, ": more than ", frames->size(), " frames of ", f->width, "x",
-        f->height, " are over the reader's limit of ",
-        VideoReadLimits::kMaxDecodedBytes >> 30, " GiB of decoded frames");
-    frames->push_back(ConvertFrame(path, d));
+        f->width == d->first_width && f->height == d->first_height, path,
+        ": frame ", index, " is ", f->width, "x", f->height, " but frame 0 is ",
+        d->first_width, "x", d->first_height);
+    d->pending.push_back(ConvertFrame(path, d));
+    ++d->received;
     av_frame_unref(d->frame);
+  }
+}
+
+// Decodes until a frame is ready or the video ends.
+void DecodeMore(const std::string& path, Decoder* d) {
+  while (d->pending.empty() && !d->drained) {
+    int r = av_read_frame(d->fmt, d->packet);
+    if (r == AVERROR_EOF) {
+      GEODRIVE_CHECK_INPUT(d->fmt->pb == nullptr || d->fmt->pb->error == 0,
+                           path, ": read error (",
+                           FfmpegErrorDetail(d->fmt->pb->error), ")");
+      r = avcodec_send_packet(d->codec, nullptr);  // drain
+      GEODRIVE_CHECK_INPUT(r >= 0 || r == AVERROR_EOF, path,
+                           ": corrupt video data at the end (",
+                           FfmpegErrorDetail(r), ")");
+      ReceiveFrames(path, d);
+      d->drained = true;
+      break;
+    }
+    GEODRIVE_CHECK_INPUT(r >= 0, path,
+                         ": truncated or unreadable video data after frame ",
+                         d->received, " (", FfmpegErrorDetail(r), ")");
+    if (d->packet->stream_index != d->stream) {
+      av_packet_unref(d->packet);
+      continue;
+    }
+    const bool corrupt = (d->packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
+    r = avcodec_send_packet(d->codec, d->packet);
+    if (r == AVERROR(EAGAIN)) {  // frames first, then the same packet again
+      ReceiveFrames(path, d);
+      r = avcodec_send_packet(d->codec, d->packet);
+    }
+    av_packet_unref(d->packet);
+    GEODRIVE_CHECK_INPUT(!corrupt, path, ": corrupt video packet after frame ",
+                         d->received);
+    GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data after frame ",
+                         d->received, " (", FfmpegErrorDetail(r), ")");
+    ReceiveFrames(path, d);
   }
 }
 
 }  // namespace
 
-std::vector<cv::Mat> DecodeVideoFileRgb(const std::string& path) {
+struct VideoFileReader::Impl {
+  std::string path;
+  Decoder d;
+};
+
+VideoFileReader::VideoFileReader(const std::string& path) : impl_(new Impl) {
+  impl_->path = path;
   InstallFfmpegLogCapture();
   TakeFfmpegLogMessage();  // forget what an earlier call left
-  Decoder d;
-  OpenContainer(path, &d);
-  FindVideoStream(path, &d);
-  OpenDecoder(path, &d);
-  std::vector<cv::Mat> frames;
-  while (true) {
-    int r = av_read_frame(d.fmt, d.packet);
-    if (r == AVERROR_EOF) break;
-    GEODRIVE_CHECK_INPUT(r >= 0, path,
-                         ": truncated or unreadable video data after frame ",
-                         frames.size(), " (", FfmpegErrorDetail(r), ")");
-    if (d.packet->stream_index != d.stream) {
-      av_packet_unref(d.packet);
-      continue;
-    }
-    const bool corrupt = (d.packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
-    r = avcodec_send_packet(d.codec, d.packet);
-    if (r == AVERROR(EAGAIN)) {  // frames first, then the same packet again
-      ReceiveFrames(path, &d, &frames);
-      r = avcodec_send_packet(d.codec, d.packet);
-    }
-    av_packet_unref(d.packet);
-    GEODRIVE_CHECK_INPUT(!corrupt, path, ": corrupt video packet after frame ",
-                         frames.size());
-    GEODRIVE_CHECK_INPUT(r >= 0, path, ": corrupt video data after frame ",
-                         frames.size(), " (", FfmpegErrorDetail(r), ")");
-    ReceiveFrames(path, &d, &frames);
+  OpenContainer(path, &impl_->d);
+  FindVideoStream(path, &impl_->d);
+  OpenDecoder(path, &impl_->d);
+}
+
+VideoFileReader::~VideoFileReader() = default;
+
+int VideoFileReader::width() const {
+  const AVCodecParameters* par = impl_->d.fmt->streams[impl_->d.stream]->codecpar;
+  const bool swapped = impl_->d.rotation == 90 || impl_->d.rotation == 270;
+  return swapped ? par->height : par->width;
+}
+
+int VideoFileReader::height() const {
+  const AVCodecParameters* par = impl_->d.fmt->streams[impl_->d.stream]->codecpar;
+  const bool swapped = impl_->d.rotation == 90 || impl_->d.rotation == 270;
+  return swapped ? par->width : par->height;
+}
+
+int64_t VideoFileReader::declared_frames() const {
+  return std::max<int64_t>(0, impl_->d.fmt->streams[impl_->d.stream]->nb_frames);
+}
+
+int64_t VideoFileReader::frames_read() const { return impl_->d.taken; }
+
+bool VideoFileReader::Next(cv::Mat* rgb) {
+  Decoder& d = impl_->d;
+  DecodeMore(impl_->path, &d);
+  if (d.pending.empty()) {
+    GEODRIVE_CHECK_INPUT(d.taken > 0, impl_->path,
+                         ": empty video (no frame could be decoded)");
+    return false;
   }
-  GEODRIVE_CHECK_INPUT(d.fmt->pb == nullptr || d.fmt->pb->error == 0, path,
-                       ": read error (", FfmpegErrorDetail(d.fmt->pb->error),
-                       ")");
-  const int r = avcodec_send_packet(d.codec, nullptr);  // drain
-  GEODRIVE_CHECK_INPUT(r >= 0 || r == AVERROR_EOF, path,
-                       ": corrupt video data at the end (",
-                       FfmpegErrorDetail(r), ")");
-  ReceiveFrames(path, &d, &frames);
-  GEODRIVE_CHECK_INPUT(!frames.empty(), path,
-                       ": empty video (no frame could be decoded)");
+  *rgb = std::move(d.pending.front());
+  d.pending.pop_front();
+  ++d.taken;
+  return true;
+}
+
+int64_t VideoFrameBytes(int64_t width, int64_t height) {
+  return 3 * width * height + SizeLimits::kFrameOverheadBytes;
+}
+
+void CheckVideoFramesFit(const std::string& path,
+                         int64_t frames,
+                         int64_t width,
+                         int64_t height) {
+  CheckDeclaredCount(path, "the video", static_cast<uint64_t>(frames),
+                     SizeLimits::kMaxVideoFrames);
+  CheckAllocation(path,
+                  std::to_string(frames) + " decoded frames of " +
+                      std::to_string(width) + "x" + std::to_string(height),
+                  SaturatingMul(static_cast<uint64_t>(frames),
+                                static_cast<uint64_t>(
+                                    VideoFrameBytes(width, height))),
+                  SizeLimits::kMaxVideoDecodeBytes);
+}
+
+std::vector<cv::Mat> DecodeVideoFileRgb(const std::string& path) {
+  VideoFileReader reader(path);
+  // The declared frame count against the limits before any frame is decoded,
+  // then the frames decoded so far, frame by frame.
+  CheckVideoFramesFit(path, reader.declared_frames(), reader.width(),
+                      reader.height());
+  std::vector<cv::Mat> frames;
+  cv::Mat frame;
+  while (reader.Next(&frame)) {
+    CheckVideoFramesFit(path, static_cast<int64_t>(frames.size()) + 1,
+                        frame.cols, frame.rows);
+    frames.push_back(std::move(frame));
+  }
   return frames;
 }
 

@@ -20,21 +20,62 @@
 // single-threaded, so the frames do not depend on the machine's core count.
 
 #include <cstdint>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
+#include "geometry/util/size_limits.h"
+
 namespace geodrive {
 
 // The largest video ReadVideoFrames accepts. Frame sides and pixels as for
-// images (ImageReadLimits); all decoded frames together (RGB, 3 bytes a pixel)
-// at most kMaxDecodedBytes, checked against the header's frame count before
-// decoding and again while decoding.
+// images (ImageReadLimits); all decoded frames together (RGB, 3 bytes a pixel,
+// plus SizeLimits::kFrameOverheadBytes a frame) at most kMaxDecodedBytes and
+// at most SizeLimits::kMaxVideoFrames frames, checked against the header's
+// frame count before decoding and again while decoding
+// (geometry/util/size_limits.h).
 struct VideoReadLimits {
-  static constexpr int kMaxSide = 16384;
-  static constexpr int64_t kMaxPixels = int64_t{1} << 28;
-  static constexpr int64_t kMaxDecodedBytes = int64_t{16} << 30;  // 16 GiB
+  static constexpr int kMaxSide = static_cast<int>(SizeLimits::kMaxImageSide);
+  static constexpr int64_t kMaxPixels = SizeLimits::kMaxImagePixels;
+  static constexpr int64_t kMaxDecodedBytes = SizeLimits::kMaxVideoDecodeBytes;
+  static constexpr int64_t kMaxFrames = SizeLimits::kMaxVideoFrames;
 };
+
+// A video file decoded one frame at a time (memory: one frame and the
+// decoder's own buffers, whatever the length). The constructor opens the
+// container and the decoder and checks the declared frame size; Next()
+// throws InputError naming the file as DecodeVideoFileRgb does.
+class VideoFileReader {
+ public:
+  explicit VideoFileReader(const std::string& path);
+  ~VideoFileReader();
+  VideoFileReader(const VideoFileReader&) = delete;
+  VideoFileReader& operator=(const VideoFileReader&) = delete;
+
+  // The next frame, RGB CV_8UC3, in presentation order; false after the last
+  // (a video without any frame is an error).
+  bool Next(cv::Mat* rgb);
+  // The frame size the header declares (after the display rotation) and the
+  // frame count it declares (0 when the container does not say).
+  int width() const;
+  int height() const;
+  int64_t declared_frames() const;
+  int64_t frames_read() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Bytes one decoded RGB frame of `width` x `height` holds in memory.
+int64_t VideoFrameBytes(int64_t width, int64_t height);
+// Throws InputError naming `path` when `frames` frames of `width` x `height`
+// are over SizeLimits::kMaxVideoFrames or kMaxVideoDecodeBytes.
+void CheckVideoFramesFit(const std::string& path,
+                         int64_t frames,
+                         int64_t width,
+                         int64_t height);
 
 // Every frame of the video file `path`, RGB CV_8UC3, in presentation order.
 // Throws InputError naming the file: not a readable container, no video

@@ -87,6 +87,39 @@ std::vector<cv::Mat> ReadVideoFrames(const std::string& path) {
   return DecodeVideoFileRgb(path);
 }
 
+VideoFrameStream::VideoFrameStream(const std::string& path) : path_(path) {
+  GEODRIVE_CHECK_INPUT(fs::exists(path), path, ": no such file or folder");
+  if (fs::is_directory(path)) {
+    images_ = ImageFilesIn(path);
+    GEODRIVE_CHECK_INPUT(!images_.empty(), path,
+                         ": empty video (no .png/.jpg frames in the folder)");
+    return;
+  }
+  GEODRIVE_CHECK_INPUT(
+      IsVideoFile(path), path,
+      ": not a video (expected .mp4/.avi/.mkv/.mov/.webm or a frame folder)");
+  CheckInputFile(path);
+  file_ = std::make_unique<VideoFileReader>(path);
+}
+
+VideoFrameStream::~VideoFrameStream() = default;
+
+bool VideoFrameStream::Next(cv::Mat* rgb) {
+  if (file_) {
+    if (!file_->Next(rgb)) return false;
+  } else {
+    if (read_ >= static_cast<int64_t>(images_.size())) return false;
+    const std::string& file = images_[static_cast<size_t>(read_)];
+    *rgb = ReadImageRgb(file);
+    if (read_ == 0) first_size_ = rgb->size();
+    GEODRIVE_CHECK_INPUT(rgb->size() == first_size_, file, ": frame ", read_,
+                         " is ", rgb->cols, "x", rgb->rows, " but frame 0 is ",
+                         first_size_.width, "x", first_size_.height);
+  }
+  ++read_;
+  return true;
+}
+
 void WriteVideoFrames(const std::string& path,
                       const std::vector<cv::Mat>& frames,
                       double fps) {

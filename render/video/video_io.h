@@ -5,11 +5,14 @@
 // dataset's pairs folders (pairs/<clip_id>/gt.mp4, cond.mp4, ...). Frames are
 // RGB CV_8UC3.
 
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
 namespace geodrive {
+
+class VideoFileReader;  // render/video/ffmpeg_decode.h
 
 // True for .mp4 .avi .mkv .mov .webm (case-insensitive).
 bool IsVideoFile(const std::string& path);
@@ -22,6 +25,29 @@ bool IsImageFile(const std::string& path);
 // video, corrupt or truncated data, over VideoReadLimits), has no frames, or
 // frames change size.
 std::vector<cv::Mat> ReadVideoFrames(const std::string& path);
+
+// The frames of a video file or frame folder one at a time, with
+// ReadVideoFrames's checks but holding one frame (a video file: the decoder
+// of ffmpeg_decode.h; a folder: one image file at a time), so a video of any
+// length is compared in bounded memory.
+class VideoFrameStream {
+ public:
+  explicit VideoFrameStream(const std::string& path);
+  ~VideoFrameStream();
+  VideoFrameStream(const VideoFrameStream&) = delete;
+  VideoFrameStream& operator=(const VideoFrameStream&) = delete;
+  // The next frame (RGB CV_8UC3); false after the last one.
+  bool Next(cv::Mat* rgb);
+  // Frames handed out so far.
+  int64_t frames_read() const { return read_; }
+
+ private:
+  std::string path_;
+  std::unique_ptr<VideoFileReader> file_;
+  std::vector<std::string> images_;  // a frame folder's files
+  cv::Size first_size_;
+  int64_t read_ = 0;
+};
 
 // Writes RGB CV_8UC3 frames as a video file (.mp4: 'mp4v', .avi: 'MJPG',
 // through FfmpegVideoWriter: fixed quantiser 2, odd sizes padded) or, when
