@@ -46,16 +46,21 @@ std::string DescribeValue(const json& v) {
 }
 
 // The header's JSON: nlohmann's DOM with the JSON depth limit
-// (geometry/util/json_depth.h), and the first top-level key that repeats
-// (nlohmann would keep the last one silently). Linear: nlohmann's parser
-// callbacks, used before, rescan the parent object at the end of every
-// object (quadratic in the tensor count: 100,000 tensors took minutes).
+// (geometry/util/json_depth.h), the tensor limit, and the first top-level key
+// that repeats (nlohmann would keep the last one silently). Linear, unlike
+// nlohmann's parser callbacks, which rescan the parent object at the end of
+// every object (quadratic in the tensor count: 100,000 tensors take minutes).
 class HeaderSax : public internal::DepthLimitedJsonSax {
  public:
   using DepthLimitedJsonSax::DepthLimitedJsonSax;
   bool key(json::string_t& k) {
-    if (depth() == 1 && !seen_.insert(k).second && duplicate_.empty())
-      duplicate_ = k;
+    if (depth() == 1) {
+      if (seen_.size() == kSafetensorsMaxTensors) {
+        ThrowInputError(path(), "safetensors header holds more than ",
+                        kSafetensorsMaxTensors, " tensors (the limit)");
+      }
+      if (!seen_.insert(k).second && duplicate_.empty()) duplicate_ = k;
+    }
     return DepthLimitedJsonSax::key(k);
   }
   const std::string& duplicate() const { return duplicate_; }

@@ -18,6 +18,12 @@ namespace diffusion {
 
 // Header limit of the reference implementation (100 MB).
 constexpr uint64_t kSafetensorsMaxHeaderBytes = 100u * 1000u * 1000u;
+// Most tensors (top-level keys, __metadata__ included) one header may hold:
+// twice the largest public checkpoints, all shards together (CogVideoX-5b's
+// transformer has under 1,000; the largest mixture-of-experts models under
+// 100,000). Bounds the header's parsed form (about 1 KB a tensor) at about
+// 200 MB, where the 100 MB header alone would allow 2 million entries.
+constexpr uint64_t kSafetensorsMaxTensors = 200000;
 
 // One tensor of a safetensors header.
 struct SafetensorsEntry {
@@ -43,9 +49,10 @@ struct SafetensorsHeader {
 };
 
 // Parses and validates the header of the `size`-byte file image `bytes` (the
-// whole file, e.g. memory-mapped): header length bounds, JSON, duplicate names,
-// dtypes, shapes, offsets inside the buffer, non-overlapping and covering it.
-// Throws InputError naming `path`.
+// whole file, e.g. memory-mapped): header length bounds, JSON (nested at most
+// kMaxJsonDepth deep), at most kSafetensorsMaxTensors tensors, duplicate
+// names, dtypes, shapes, offsets inside the buffer, non-overlapping and
+// covering it. Linear in the header size. Throws InputError naming `path`.
 SafetensorsHeader ParseSafetensorsHeader(const std::string& path,
                                          const uint8_t* bytes,
                                          uint64_t size);

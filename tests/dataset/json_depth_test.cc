@@ -297,6 +297,19 @@ double ParseManyTensors(int n) {
   return seconds;
 }
 
+TEST(JsonDepth, SafetensorsTensorCountIsBounded) {
+  // One more top-level key than kSafetensorsMaxTensors (scalars: the count
+  // stops the parse before any tensor is checked).
+  std::string header = "{";
+  for (uint64_t i = 0; i <= diffusion::kSafetensorsMaxTensors; ++i)
+    header += "\"" + std::to_string(i) + "\":0,";
+  header.back() = '}';
+  const std::string error = HeaderError(Safetensors(header, 0));
+  EXPECT_EQ(error,
+            "m.safetensors: safetensors header holds more than 200000 "
+            "tensors (the limit)");
+}
+
 TEST(JsonDepth, SafetensorsHeaderParsesInLinearTime) {
   // Quadratic before (nlohmann's parser callback rescanned the top-level
   // object at the end of each tensor): 100,000 tensors took 244 s. Linear,
