@@ -8,10 +8,14 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -22,8 +26,9 @@
 #include "dataset/scene_folders.h"
 #include "dataset/scene_source.h"
 #include "geometry/util/files.h"
-#include "geometry/util/names.h"
 #include "geometry/util/hash.h"
+#include "geometry/util/names.h"
+#include "geometry/util/output_file.h"
 #include "geometry/util/progress.h"
 #include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
@@ -143,6 +148,22 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   return j.dump();
 }
 
+std::string BuildDatasetOptions::InputsJson() const {
+  const auto absolute = [](const std::string& path) {
+    std::error_code ec;
+    const fs::path p = fs::weakly_canonical(fs::absolute(path), ec);
+    return ec ? fs::absolute(path).lexically_normal().string() : p.string();
+  };
+  json j;  // sorted keys: stable text
+  j["dataroot"] = absolute(dataroot);
+  if (!monst3r_root.empty() &&
+      CreateSceneSource(SceneSourceName())->Traits().needs_path) {
+    j["root"] = absolute(monst3r_root);
+    if (!monst3r_map.empty()) j["root_map"] = absolute(monst3r_map);
+  }
+  return j.dump();
+}
+
 void BuildQualityTotals::Add(const PairQuality& q) {
   ++pairs;
   if (!q.coverage.empty()) coverage0_sum += q.coverage.front();
@@ -197,6 +218,8 @@ std::string BuildDatasetSummary::BriefReport() const {
   if (rebuilt_mismatched)
     os << ", rebuilt (other options) " << rebuilt_mismatched;
   if (kept_mismatched) os << ", kept (other options) " << kept_mismatched;
+  if (rebuilt_other_inputs)
+    os << ", rebuilt (other inputs) " << rebuilt_other_inputs;
   if (log_write_errors) os << ", log write errors " << log_write_errors;
   os << ", failed " << failed;
   for (const auto& [stage, n] : failures_by_stage)
@@ -238,13 +261,35 @@ std::string AppendLine(JsonlAppender* log, const std::string& line) {
   return "";
 }
 
-enum class PairState { kMissing, kComplete, kOtherOptions, kBroken };
+enum class PairState {
+  kMissing,
+  kComplete,
+  kOtherOptions,
+  kOtherInputs,
+  kBroken
+};
 
-// A pair folder counts as finished when its meta.json reads, its options hash
-// is this run's, and every file it lists is there with its recorded size.
+// The inputs recorded in a pair's options (BuildDatasetOptions::InputsJson),
+// "" for pairs built before they were recorded.
+std::string RecordedInputs(const PairMeta& meta) {
+  try {
+    const json options = json::parse(meta.options_json);
+    const auto it = options.find("inputs");
+    if (it != options.end()) return it->dump();
+  } catch (const std::exception&) {
+  }
+  return "";
+}
+
+// A pair folder counts as finished when its meta.json reads, it was built
+// from this run's inputs (pairs that recorded none pass), its options hash is
+// this run's, and every file it lists is there with its recorded size.
+// `meta_out` (optional) receives the metadata when it reads.
 PairState VerifyPair(const std::string& dir,
                      const std::string& options_hash,
-                     std::string* why) {
+                     const std::string& inputs,
+                     std::string* why,
+                     PairMeta* meta_out = nullptr) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) return PairState::kMissing;
   PairMeta meta;
@@ -253,6 +298,12 @@ PairState VerifyPair(const std::string& dir,
   } catch (const std::exception& e) {
     *why = e.what();
     return PairState::kBroken;
+  }
+  if (meta_out) *meta_out = meta;
+  const std::string recorded = RecordedInputs(meta);
+  if (!recorded.empty() && recorded != inputs) {
+    *why = "built from " + recorded;
+    return PairState::kOtherInputs;
   }
   if (meta.options_hash != options_hash) {
     *why = "options_hash " + meta.options_hash;
@@ -332,10 +383,53 @@ ManifestEntry EntryFromMeta(const PairMeta& meta) {
           meta.options_hash};
 }
 
+// What the manifest of a run lists: the pairs of the dataset's clips (all of
+// them, whatever --clips, --max-clips or the shard), of the run's options
+// (and, with keep_mismatched, of other options) and inputs. Written to
+// OUT/.run.json by every run (the shards of one build write the same text),
+// read by --merge.
+struct RunRecord {
+  std::set<std::string> clips;
+  std::string options_hash;
+  std::string inputs;  // BuildDatasetOptions::InputsJson
+  bool keep_mismatched = false;
+};
+
+std::string RunRecordPath(const std::string& out) { return out + "/.run.json"; }
+
+std::string RunRecordJson(const RunRecord& run) {
+  json j;
+  j["clips"] = run.clips;  // a sorted array
+  j["options_hash"] = run.options_hash;
+  j["inputs"] = json::parse(run.inputs);
+  j["keep_mismatched"] = run.keep_mismatched;
+  return j.dump(1) + "\n";
+}
+
+// The record of the last run in `out`; nullopt when there is none (outputs
+// of earlier versions: the manifest then lists every pair folder).
+std::optional<RunRecord> ReadRunRecord(const std::string& out) {
+  const std::string path = RunRecordPath(out);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return std::nullopt;
+  RunRecord run;
+  try {
+    const json j = json::parse(ReadFileText(path, 1ull << 30));
+    for (const auto& c : j.at("clips")) run.clips.insert(c.get<std::string>());
+    run.options_hash = j.at("options_hash").get<std::string>();
+    run.inputs = j.at("inputs").dump();
+    run.keep_mismatched = j.at("keep_mismatched").get<bool>();
+  } catch (const json::exception& e) {
+    ThrowInputError(path, "not a build-dataset run record (", e.what(), ")");
+  }
+  return run;
+}
+
 // Rebuilds manifest.jsonl (from pair folders) and failures.jsonl (last failure
-// per clip without a pair, from all failure logs) sorted by clip id. Returns
-// the number of pairs.
-int RewriteLogs(const std::string& out) {
+// per clip without a pair, from all failure logs) sorted by clip id. With a
+// run record, only the pairs it describes are listed (the others stay on disk
+// and are reported) and only its clips' failures. Returns the number of pairs.
+int RewriteLogs(const std::string& out, const RunRecord* run) {
   std::vector<std::string> ids;
   if (fs::is_directory(out + "/pairs")) {
     for (const auto& e : fs::directory_iterator(out + "/pairs")) {
@@ -348,10 +442,37 @@ int RewriteLogs(const std::string& out) {
   }
   std::sort(ids.begin(), ids.end());
   std::string manifest;
+  std::vector<std::string> listed;
+  int left_out = 0;
+  std::string first_left_out;
   for (const auto& id : ids) {
-    manifest +=
-        ManifestEntryToJson(EntryFromMeta(ReadPairMeta(out + "/pairs/" + id))) +
-        "\n";
+    const std::string dir = out + "/pairs/" + id;
+    if (run == nullptr) {
+      manifest += ManifestEntryToJson(EntryFromMeta(ReadPairMeta(dir))) + "\n";
+      listed.push_back(id);
+      continue;
+    }
+    std::string why;
+    PairMeta meta;
+    PairState state = PairState::kMissing;
+    if (!run->clips.count(id)) {
+      why = "not a clip of this run's dataroot and clip options";
+    } else {
+      state = VerifyPair(dir, run->options_hash, run->inputs, &why, &meta);
+    }
+    if (state == PairState::kComplete ||
+        (state == PairState::kOtherOptions && run->keep_mismatched)) {
+      manifest += ManifestEntryToJson(EntryFromMeta(meta)) + "\n";
+      listed.push_back(id);
+    } else {
+      if (left_out++ == 0) first_left_out = id + ": " + why;
+    }
+  }
+  if (left_out > 0) {
+    std::cerr << "build-dataset: " << left_out << " pair folder(s) in " << out
+              << "/pairs are not pairs of this run's clips, options and "
+                 "inputs (first: "
+              << first_left_out << "): left out of manifest.jsonl\n";
   }
   WriteFileAtomic(out + "/manifest.jsonl", manifest);
   std::map<std::string, FailureEntry> failures;
@@ -371,13 +492,14 @@ int RewriteLogs(const std::string& out) {
   for (const auto& log : logs) {
     for (const auto& f : ReadFailures(log)) failures[f.clip_id] = f;
   }
-  const std::set<std::string> built(ids.begin(), ids.end());
+  const std::set<std::string> built(listed.begin(), listed.end());
   std::string text;
   for (const auto& [id, f] : failures) {
-    if (!built.count(id)) text += FailureEntryToJson(f) + "\n";
+    if (!built.count(id) && (run == nullptr || run->clips.count(id)))
+      text += FailureEntryToJson(f) + "\n";
   }
   WriteFileAtomic(out + "/failures.jsonl", text);
-  return static_cast<int>(ids.size());
+  return static_cast<int>(listed.size());
 }
 
 // The clips of `clips` that --clips names; an unknown id is an InputError.
@@ -421,11 +543,12 @@ std::vector<const std::string*> PendingClips(
     BuildDatasetSummary* summary) {
   for (const auto& c : mine) RecoverClipFolders(opt.out, c);
   const std::string hash = StableHash64(opt.ContentOptionsJson());
+  const std::string inputs = opt.InputsJson();
   std::vector<const std::string*> pending;
-  std::string first_mismatch;
+  std::string first_mismatch, first_other_inputs;
   for (const auto& c : mine) {
     std::string why;
-    switch (VerifyPair(opt.out + "/pairs/" + c, hash, &why)) {
+    switch (VerifyPair(opt.out + "/pairs/" + c, hash, inputs, &why)) {
       case PairState::kMissing:
         pending.push_back(&c);
         break;
@@ -441,6 +564,12 @@ std::vector<const std::string*> PendingClips(
           pending.push_back(&c);
         }
         break;
+      case PairState::kOtherInputs:
+        if (first_other_inputs.empty())
+          first_other_inputs = c + " (" + why + ")";
+        ++summary->rebuilt_other_inputs;
+        pending.push_back(&c);
+        break;
       case PairState::kBroken:
         ++summary->rebuilt_broken;
         if (!opt.quiet)
@@ -449,6 +578,12 @@ std::vector<const std::string*> PendingClips(
         pending.push_back(&c);
         break;
     }
+  }
+  if (summary->rebuilt_other_inputs > 0) {
+    std::cerr << "build-dataset: " << summary->rebuilt_other_inputs
+              << " pair(s) in " << opt.out
+              << " were built from other inputs (first: " << first_other_inputs
+              << "; this run " << inputs << "): rebuilding them\n";
   }
   const int mismatched = summary->kept_mismatched + summary->rebuilt_mismatched;
   if (mismatched > 0) {
@@ -462,6 +597,43 @@ std::vector<const std::string*> PendingClips(
   return pending;
 }
 
+// Shards that run together must deal the clips the same way: a running shard
+// of another count would build some of this shard's clips at the same time.
+void CheckNoShardOfAnotherCount(const BuildDatasetOptions& opt) {
+  const std::string own = "-of-" + std::to_string(opt.shard_count);
+  for (const auto& e : fs::directory_iterator(opt.out)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(".lock.shard-", 0) != 0 || EndsWith(name, own)) continue;
+    GEODRIVE_CHECK_INPUT(!LockFileIsHeld(e.path().string()), opt.out,
+                         ": output folder: ", name.substr(6),
+                         " is running (lock ", e.path().string(),
+                         "); shards writing one folder together must all use "
+                         "--shard i/",
+                         opt.shard_count, " with the same count");
+  }
+}
+
+// One lock per output folder, whatever the shard: OUT/.lock, exclusive for a
+// run of all shards (and --merge), shared by the shards of one build, each of
+// which also holds OUT/.lock.shard-<i>-of-<N> exclusively.
+struct OutputLocks {
+  explicit OutputLocks(const BuildDatasetOptions& opt)
+      : folder(opt.out + "/.lock",
+               opt.out + ": output folder",
+               opt.shard_count == 1 ? OutputFolderLock::Mode::kExclusive
+                                    : OutputFolderLock::Mode::kShared) {
+    if (opt.shard_count == 1) return;
+    shard = std::make_unique<OutputFolderLock>(
+        opt.out + "/.lock" + ShardSuffix(opt.shard_index, opt.shard_count),
+        opt.out + ": shard " + std::to_string(opt.shard_index) + "/" +
+            std::to_string(opt.shard_count) + " of the output folder",
+        OutputFolderLock::Mode::kExclusive);
+    CheckNoShardOfAnotherCount(opt);
+  }
+  OutputFolderLock folder;
+  std::unique_ptr<OutputFolderLock> shard;
+};
+
 }  // namespace
 
 BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
@@ -469,6 +641,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   const auto t_start = std::chrono::steady_clock::now();
   BuildDatasetSummary summary;
   CreateOutputDirectory(opt.out + "/pairs");
+  const OutputLocks locks(opt);
 
   DriveDatasetOptions dso;
   dso.root = opt.dataroot;
@@ -522,10 +695,13 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   const std::vector<std::string> mine = ShardClips(clips, opt);
   summary.clips_total = static_cast<int>(mine.size());
 
-  // One run per output folder (and shard): a second one says who holds it.
   const std::string suffix = ShardSuffix(opt.shard_index, opt.shard_count);
-  const ExclusiveLock out_lock(opt.out + "/.lock" + suffix,
-                               opt.out + ": output folder");
+  RunRecord run;
+  run.clips.insert(dataset->ClipIds().begin(), dataset->ClipIds().end());
+  run.options_hash = StableHash64(opt.ContentOptionsJson());
+  run.inputs = opt.InputsJson();
+  run.keep_mismatched = opt.keep_mismatched;
+  WriteFileAtomic(RunRecordPath(opt.out), RunRecordJson(run));
   const std::vector<const std::string*> pending =
       PendingClips(mine, opt, &summary);
   JsonlAppender manifest(opt.out + "/manifest" + suffix + ".jsonl");
@@ -541,6 +717,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       const std::string& clip_id = *pending[k];
       const std::string tmp = opt.out + "/pairs/.tmp-" + clip_id;
       const std::string final_dir = opt.out + "/pairs/" + clip_id;
+      RegisterTemporaryPath(tmp);  // removed if the run is killed by a signal
       std::string stage = "setup", error, error_log;
       PairQuality quality;
       try {
@@ -597,10 +774,23 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start)
           .count();
   if (opt.shard_count == 1) {
-    RewriteLogs(opt.out);
+    // A log or report that cannot be written (a full disk, a file-size
+    // limit, a device in its place) fails the run, naming the file.
+    const auto write = [&summary](const std::function<void()>& step) {
+      try {
+        step();
+      } catch (const InputError& e) {
+        ++summary.log_write_errors;
+        std::cerr << "build-dataset: " << e.what() << "\n";
+      } catch (const fs::filesystem_error& e) {
+        ++summary.log_write_errors;
+        std::cerr << "build-dataset: " << e.what() << "\n";
+      }
+    };
+    write([&] { RewriteLogs(opt.out, &run); });
     if (opt.export_format == PairExport::kGeodriveUpstream)
-      internal::WriteUpstreamIndex(opt.out);
-    WriteBuildReport(opt.out, &summary);
+      write([&] { internal::WriteUpstreamIndex(opt.out); });
+    write([&] { WriteBuildReport(opt.out, &summary); });
   }
   return summary;
 }
@@ -608,7 +798,10 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
 int MergeBuildOutputs(const std::string& out) {
   GEODRIVE_CHECK_INPUT(fs::is_directory(out + "/pairs"), out,
                        ": not a build-dataset output (no pairs/)");
-  const int n = RewriteLogs(out);
+  const OutputFolderLock lock(out + "/.lock", out + ": output folder",
+                              OutputFolderLock::Mode::kExclusive);
+  const std::optional<RunRecord> run = ReadRunRecord(out);
+  const int n = RewriteLogs(out, run ? &*run : nullptr);
   internal::WriteUpstreamIndex(out);  // no-op without exported pairs
   WriteBuildReport(out, nullptr);
   return n;

@@ -119,6 +119,11 @@ struct BuildDatasetOptions {
   // The options that affect the content of a pair, as a JSON object (stable key
   // order).
   std::string ContentOptionsJson() const;
+  // The identity of the inputs, as a JSON object: the absolute dataroot and,
+  // for a scene source that reads a folder, its absolute root (and map).
+  // Recorded in each pair's meta.json options ("inputs", outside the options
+  // hash); a pair of other inputs is never taken as built.
+  std::string InputsJson() const;
 };
 
 // Frame-0 figures of the pairs built in a run, averaged over the pairs that
@@ -150,8 +155,12 @@ struct BuildDatasetSummary {
   // or kept with keep_mismatched.
   int rebuilt_mismatched = 0;
   int kept_mismatched = 0;
-  // Lines that could not be appended to manifest/failures logs (the run then
-  // fails; the logs are rebuilt from the pair folders at the end).
+  // Pairs built from other inputs (another dataroot or scene-source root):
+  // always rebuilt.
+  int rebuilt_other_inputs = 0;
+  // Lines that could not be appended to manifest/failures logs, and final
+  // logs or report that could not be written (the run then fails, exit 3;
+  // the logs are rebuilt from the pair folders at the end).
   int log_write_errors = 0;
   int skipped_no_monst3r =
       0;  // clips without a MonST3R folder (geometry monst3r)
@@ -173,8 +182,9 @@ struct BuildDatasetSummary {
 BuildDatasetSummary BuildDataset(BuildDatasetOptions options);
 
 // Merges shard outputs in `out`: manifest.jsonl and failures.jsonl rebuilt
-// (sorted by clip id) from the pair folders and the shard failure logs, and
-// report.html written. Returns the number of pairs.
+// (sorted by clip id) from the pair folders of the last run's clips, options
+// and inputs (OUT/.run.json) and the shard failure logs, and report.html
+// written. Holds OUT/.lock exclusively. Returns the number of pairs.
 int MergeBuildOutputs(const std::string& out);
 
 // Writes OUT/report.html: one self-contained page (inline CSS and script;

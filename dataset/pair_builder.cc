@@ -344,8 +344,12 @@ PairMeta MakePairMeta(const DriveClip& clip,
   meta.geometry_source = opt.SceneSourceName();
   meta.preset = ToString(opt.preset);
   meta.edit_mode = ToString(opt.edit_mode);
-  meta.options_json = opt.ContentOptionsJson();
-  meta.options_hash = StableHash64(meta.options_json);
+  // The options with the inputs' identity; the hash covers the options only.
+  const std::string content_options = opt.ContentOptionsJson();
+  nlohmann::json options = nlohmann::json::parse(content_options);
+  options["inputs"] = nlohmann::json::parse(opt.InputsJson());
+  meta.options_json = options.dump();
+  meta.options_hash = StableHash64(content_options);
   meta.tool_version = GEODRIVE_VERSION;
   meta.scale = scene.scale.scale;
   meta.scale_source = scene.scale.source;

@@ -49,6 +49,7 @@
 #include "geometry/point_cloud.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_json.h"
+#include "geometry/util/output_file.h"
 #include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
@@ -311,9 +312,16 @@ int RunGenerateManifest(const GenerateArgs& a) {
 
 int RunGenerate(const GenerateArgs& a) {
   if (!a.manifest.empty()) return RunGenerateManifest(a);
+  GEODRIVE_CHECK_INPUT(!a.out.empty(), "--out is required");
+  // The video is not written over (or into the folder of) an input.
+  const size_t colon = a.scene.find(':');
+  CheckOutputIsNotInput(
+      a.out,
+      {a.geometry, a.depth, a.image, a.intrinsics, a.trajectory, a.boxes,
+       a.weights, a.branch_weights, a.vae_weights, a.prompt_embeds,
+       colon == std::string::npos ? a.scene : a.scene.substr(colon + 1)});
   const Model m = LoadModel(a);
   const int model_frames = m.model_frames, H = m.H, W = m.W;
-  GEODRIVE_CHECK_INPUT(!a.out.empty(), "--out is required");
   GEODRIVE_CHECK_INPUT(
       !a.geometry.empty() + !a.depth.empty() + !a.scene.empty() == 1,
       "give exactly one of --geometry MONST3R_DIR, --scene TOOL:PATH and "

@@ -17,6 +17,7 @@
 #include "diffusion/train.h"
 #include "geodrive_version.h"
 #include "geometry/util/memory.h"
+#include "geometry/util/output_file.h"
 
 namespace geodrive::diffusion {
 namespace {
@@ -81,6 +82,9 @@ CommandRunner SetupSample(CLI::App& cmd) {
     a->so.progress = !a->no_progress;
     a->so.runtime = a->runtime.Parse();
     a->so.attention = a->runtime.Attention();
+    CheckOutputIsNotInput(a->so.out,
+                          {a->so.weights, a->so.branch_weights, a->so.latents,
+                           a->so.cond_latents, a->so.prompt_embeds});
     std::cout << Sample(a->so).BriefReport() << std::endl;
     return 0;
   };

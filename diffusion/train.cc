@@ -26,6 +26,7 @@
 #include "diffusion/vae.h"
 #include "diffusion/vae_config.h"
 #include "geometry/util/files.h"
+#include "geometry/util/output_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -713,8 +714,12 @@ double Trainer::Validate() {
   return total / static_cast<double>(m.val.size());
 }
 
-void Trainer::SaveCheckpoint(const std::string& dir) const {
+void Trainer::SaveCheckpoint(const std::string& final_dir) const {
   const Impl& m = *impl_;
+  // Written under a temporary name (removed if the run is interrupted) and
+  // renamed when complete: a checkpoint folder is whole or absent.
+  const fs::path final_path(final_dir);
+  const std::string dir = TemporaryPathFor(final_dir);
   std::error_code ec;
   fs::create_directories(dir + "/branch", ec);
   GEODRIVE_CHECK_INPUT(!ec, dir, ": cannot create (", ec.message(), ")");
@@ -756,6 +761,21 @@ void Trainer::SaveCheckpoint(const std::string& dir) const {
   state_meta["weights"] = m.o.weights;
   state_meta["pairs"] = m.o.pairs;
   SaveSafetensors(dir + "/" + kStateFile, state, state_meta);
+  // An existing folder of that name is moved aside first and removed once the
+  // new one is in place.
+  const std::string aside =
+      (final_path.parent_path() /
+       ("." + final_path.filename().string() + ".replaced"))
+          .string();
+  const bool replacing = fs::exists(final_dir, ec);
+  if (replacing) {
+    fs::remove_all(aside, ec);
+    fs::rename(final_dir, aside, ec);
+    GEODRIVE_CHECK_INPUT(!ec, final_dir, ": cannot move it aside (",
+                         ec.message(), ")");
+  }
+  CommitDirectory(dir, final_dir);
+  if (replacing) fs::remove_all(aside, ec);
 }
 
 int64_t Trainer::step() const { return impl_->step; }
@@ -878,6 +898,55 @@ void DrawTrainProgress(const TrainLogRow& r,
   std::fflush(stderr);
 }
 
+// The step of the newest OUT/checkpoint-<step> folder, -1 when there is none.
+int64_t LatestCheckpointStep(const std::string& out) {
+  int64_t latest = -1;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(out, ec)) {
+    const std::string name = e.path().filename().string();
+    const std::string prefix = "checkpoint-";
+    if (name.rfind(prefix, 0) != 0 || name.size() == prefix.size() ||
+        name.size() > prefix.size() + 18 ||
+        name.find_first_not_of("0123456789", prefix.size()) !=
+            std::string::npos ||
+        !e.is_directory(ec)) {
+      continue;
+    }
+    latest = std::max<int64_t>(latest, std::stoll(name.substr(prefix.size())));
+  }
+  return latest;
+}
+
+// The global step a checkpoint folder holds (its state file's metadata), -1
+// when it cannot be read (the trainer then reports why).
+int64_t CheckpointStep(const std::string& dir) {
+  try {
+    const SafetensorsFile st(dir + "/" + kStateFile);
+    const auto it = st.metadata().find("global_step");
+    if (it != st.metadata().end()) return std::stoll(it->second);
+  } catch (const std::exception&) {
+  }
+  return -1;
+}
+
+// A run continues the newest checkpoint of its --out, or starts in an --out
+// without checkpoints: resuming an earlier one would rewrite the log from its
+// step while the later checkpoints stay, and a new run would mix its
+// checkpoints with an earlier run's. `step`: the resumed step (-1: new run).
+void CheckResumePoint(const TrainOptions& o, int64_t step) {
+  const int64_t latest = LatestCheckpointStep(o.out);
+  if (latest < 0) return;
+  const std::string newest = o.out + "/checkpoint-" + std::to_string(latest);
+  GEODRIVE_CHECK_INPUT(!o.resume.empty(), o.out, ": holds ", newest,
+                       " of an earlier run: continue it with --resume ", newest,
+                       ", or train into another --out");
+  GEODRIVE_CHECK_INPUT(step < 0 || latest <= step, "--resume ", o.resume,
+                       ": step ", step, ", but ", newest,
+                       " is later (resuming would rewrite the log from step ",
+                       step, " while the later checkpoints stay): resume from ",
+                       newest, ", or remove the later checkpoints");
+}
+
 }  // namespace
 
 TrainResult Train(const TrainOptions& o) {
@@ -891,7 +960,11 @@ TrainResult Train(const TrainOptions& o) {
   std::error_code ec;
   fs::create_directories(o.out, ec);
   GEODRIVE_CHECK_INPUT(!ec, o.out, ": cannot create (", ec.message(), ")");
+  // One run per output folder: a second one says which pid holds it.
+  const ExclusiveLock lock(o.out + "/.lock", o.out + ": output folder");
+  CheckResumePoint(o, o.resume.empty() ? -1 : CheckpointStep(o.resume));
   Trainer trainer(o);
+  if (!o.resume.empty()) CheckResumePoint(o, trainer.step());
   TrainResult result;
   result.start_step = trainer.step();
   std::vector<TrainLogRow> rows;

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "geometry/util/files.h"
+#include "geometry/util/output_file.h"
 #include "geometry/util/plugin.h"
 #include "geometry/util/status.h"
 
@@ -86,6 +87,8 @@ int RunCommandLine(const CliProgram& program, int argc, char** argv) {
     const std::string who = program.name + " " + sub->get_name();
     try {
       if (program.before_run) program.before_run();
+      // SIGINT/SIGTERM: temporaries removed, exit 130; SIGXFSZ: a write error.
+      InstallInterruptHandlers();
       return runner();
     } catch (const InputError& e) {
       std::cerr << who << ": error: " << e.what() << std::endl;

@@ -12,6 +12,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "geometry/util/output_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -81,7 +82,10 @@ void ProgressReporter::Print(bool final) {
 namespace {
 std::atomic<int> g_stop_signals{0};
 void OnStopSignal(int) {
-  if (g_stop_signals.fetch_add(1) >= 1) _exit(130);
+  if (g_stop_signals.fetch_add(1) >= 1) {
+    RemoveRegisteredTemporaries();
+    _exit(130);
+  }
   const char msg[] =
       "\ngeodrive: stop requested; finishing current items (signal again to "
       "abort)\n";
@@ -97,6 +101,7 @@ void InstallStopSignalHandlers() {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  ::signal(SIGXFSZ, SIG_IGN);  // a file-size limit is a write error
 }
 
 bool StopRequested() { return g_stop_signals.load() > 0; }

@@ -12,6 +12,7 @@ extern "C" {
 #include <filesystem>
 
 #include "geometry/util/files.h"
+#include "geometry/util/output_file.h"
 #include "geometry/util/status.h"
 #include "render/video/ffmpeg_log.h"
 
@@ -105,7 +106,9 @@ FfmpegVideoWriter::FfmpegVideoWriter(const std::string& path,
   TakeFfmpegLogMessage();
   Impl& m = *impl_;
   m.path = path;
-  m.tmp = path + ".tmp" + std::filesystem::path(path).extension().string();
+  CheckReplaceableOutput(path);
+  m.tmp =
+      TemporaryPathFor(path, std::filesystem::path(path).extension().string());
   m.w = width;
   m.h = height;
   int r =

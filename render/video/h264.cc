@@ -15,6 +15,7 @@ extern "C" {
 #include <opencv2/imgproc.hpp>
 
 #include "geometry/util/files.h"
+#include "geometry/util/output_file.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -86,7 +87,8 @@ H264Mp4Writer::H264Mp4Writer(const std::string& path,
                        width, "x", height);
   Impl& m = *impl_;
   m.path = path;
-  m.tmp = path + ".tmp.mp4";
+  CheckReplaceableOutput(path);
+  m.tmp = TemporaryPathFor(path, ".mp4");
   m.w = width;
   m.h = height;
   m.ew = width + (width % 2);
