@@ -1,7 +1,7 @@
 // The `geodrive` command-line tool: one binary, one subcommand per task
 // (apps/*_command.cc, registered in the shared registry of apps/cli/cli.h).
 //
-// Start-up (issue 23): the executable holds only the light commands (`info`)
+// Start-up: the executable holds only the light commands (`info`)
 // and links only light libraries. Every other command lives in the plugin
 // libgeodrive-commands.so (apps/commands_plugin.cc), loaded when one of them
 // runs (or for --help, which lists them all): `geodrive --version` and

@@ -40,9 +40,8 @@ namespace geodrive {
 
 // How a frame is brought to the output size.
 enum class FrameDecodeMode {
-  // Full-size decode, then ResizeFrameToOutput (cv::resize): the builder's
-  // path before issue 23 (same pixels), kept as the reference for the tests
-  // and the benchmark.
+  // Full-size decode, then ResizeFrameToOutput (cv::resize): the reference
+  // path for the tests and the benchmark.
   kFull,
   // Decode a JPEG at FrameDecodeScale (the smallest allowed DCT scale whose
   // unrounded size covers the resized size on both axes), AreaResizeRgb of
@@ -53,7 +52,7 @@ enum class FrameDecodeMode {
 };
 
 struct FrameDecodeOptions {
-  // Which path; kDctScaled unless a caller needs the old pixels.
+  // Which path; kDctScaled unless a caller needs kFull's pixels.
   FrameDecodeMode mode = FrameDecodeMode::kDctScaled;
   // The DCT scales kDctScaled chooses from. false: 1/8, 1/4, 1/2 and 1/1, the
   // ones with SIMD inverse DCTs in libjpeg-turbo (the fastest and closest to
@@ -96,8 +95,7 @@ cv::Mat FullFrameToOutput(const cv::Mat& rgb, const ImageResizeSpec& spec);
 
 // Resizes and crops a full-size decoded frame (any size) as `spec` says:
 // cv::resize, INTER_AREA when the width shrinks, INTER_LINEAR otherwise (the
-// builder's rule before issue 23, unchanged; the kFull path). Returns a new
-// image.
+// kFull path). Returns a new image.
 cv::Mat ResizeFrameToOutput(const cv::Mat& rgb, const ImageResizeSpec& spec);
 
 }  // namespace geodrive

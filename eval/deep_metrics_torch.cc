@@ -5,7 +5,7 @@
 //
 // Compiled only into the plugin libgeodrive-deep-metrics.so
 // (eval/CMakeLists.txt), loaded by eval/deep_metrics.cc when a deep metric is
-// asked for: no other binary links LibTorch (issue 23: it costs 0.6 s of
+// asked for: no other binary links LibTorch (it costs 0.6 s of
 // start-up per process).
 
 #include <torch/script.h>

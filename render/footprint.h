@@ -1,5 +1,5 @@
 #pragma once
-// Footprint-aware splats (issue 22). A point of a pointmap stands for the
+// Footprint-aware splats. A point of a pointmap stands for the
 // pixel that saw it. Drawn as one pixel, a surface seen from closer than at
 // capture shows holes through which the background bleeds; the z-buffer
 // renderer (SplatSize::kFootprint) therefore draws each point over the

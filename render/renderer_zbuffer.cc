@@ -865,8 +865,8 @@ void RenderZBuffer(const PackedCloud& soa,
 
 // The outputs of the frames of one call, in bytes, from which the resolve
 // writes them with streaming stores (RenderZBuffer). Ordinary stores first
-// read each output line into the cache (read for ownership): on the 2-vCPU
-// Xeon VM of docs/PERFORMANCE.md, 8.1 GB/s of 32-byte stores to a 69 MB
+// read each output line into the cache (read for ownership): on machine B
+// of docs/PERFORMANCE.md (2-vCPU Xeon), 8.1 GB/s of 32-byte stores to a 69 MB
 // buffer against 19-21 GB/s streamed. Below this size the outputs may still
 // be in cache when the caller reads them, so they are stored normally.
 constexpr uint64_t kStreamOutputBytes = uint64_t{32} << 20;

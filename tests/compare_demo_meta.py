@@ -1,11 +1,11 @@
 #!/usr/bin/python3
 """Compares two build-dataset output trees (tests/compare_demo_trees.sh): every file byte for byte
 except report.html (run timings) and meta.json, which is compared as JSON after dropping the keys
-that later issues added or changed on purpose:
-  frame_source, frame_interval_s                   added by issue 18 (clip frame source)
-  quality.reprojection_rms_px[_before|_after]      issue 18: the -1 "not computed" sentinel is gone
-  quality.scale_inlier_fraction when -1 / absent   issue 18: same sentinel
-  file_sizes                                       added by issue 19 (verified resume)
+that newer revisions add or change on purpose:
+  frame_source, frame_interval_s                   the clip frame source
+  quality.reprojection_rms_px[_before|_after]      no -1 "not computed" sentinel
+  quality.scale_inlier_fraction when -1 / absent   no -1 sentinel either
+  file_sizes                                       verified resume
 Everything else in meta.json (poses, intrinsics, scale, coverage, PSNR, options, files) must be
 equal. Exit 0 when the trees agree, 1 listing the differences."""
 import filecmp
@@ -29,7 +29,7 @@ def normalise(meta):
 def main():
     a, b = sys.argv[1], sys.argv[2]
     diffs = []
-    def listing(root):  # the lock file (issue 19) holds a pid: not an output
+    def listing(root):  # the lock file holds a pid: not an output
         return {os.path.relpath(os.path.join(d, f), root) for d, _, fs in os.walk(root)
                 for f in fs if not f.startswith(".lock")}
     files_a, files_b = listing(a), listing(b)

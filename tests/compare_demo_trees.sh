@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# Re-checks "behaviour is unchanged" (issue 17, the clip -> scene seam): builds `geodrive` at a
+# Checks that behaviour is unchanged across the clip -> scene seam: builds `geodrive` at a
 # base revision in a git worktree, runs the demo's main job (scripts/demo.sh steps 1 and 3:
 # `synth --scenes 2 --seed 7 --monst3r`, then `build-dataset`) with it and with this tree's
 # binary, and compares the two output trees: the synthetic dataset byte for byte, every pair
 # folder file, manifest.jsonl and failures.jsonl byte for byte, report.html left out (run timings)
-# and meta.json as JSON without the fields later issues added or changed on purpose
+# and meta.json as JSON without the fields that newer revisions add or change on purpose
 # (tests/compare_demo_meta.py lists them). With --exact, meta.json is compared byte for byte too
-# (true between 29169f5 and the seam itself, before issue 18's metadata changes).
+# (true between 29169f5 and the seam itself: both write the same meta.json fields, without
+# those tests/compare_demo_meta.py drops).
 # Exit 0 when the trees agree, 1 with the differing files listed otherwise.
 #
 # Usage: bash tests/compare_demo_trees.sh [--exact] [OLD_REV [NEW_REV]]

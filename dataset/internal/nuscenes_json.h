@@ -243,7 +243,7 @@ class SliceParser {
 // slice and simdjson buffers are a quarter as big, and a first v1.0-mini-size
 // load in a fresh process, two threads, faulted 2,000 fewer pages in (8,258 ->
 // 6,215 for the whole process) at the same speed; the trainval-size load was
-// no slower (docs/PERFORMANCE.md, "nuScenes reader", session 16).
+// no slower (docs/PERFORMANCE.md, "nuScenes reader").
 constexpr size_t kDefaultSliceBytes = size_t{1} << 18;
 
 // Testing hooks (process-wide): disable the fast front end (every table goes

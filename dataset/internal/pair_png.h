@@ -2,12 +2,12 @@
 // The pair folder's PNGs (first_frame.png, preview.png) written for speed
 // (internal to geodrive_dataset). geometry/image_io.h's WriteImageRgb uses
 // zlib level 3 with libspng's adaptive filter choice (all five filters tried
-// on every row): 38-39 ms CPU per 720x480 frame on the development VM, a third
-// of the builder's encode stage. Level 1 with the Paeth filter and zlib's
-// run-length strategy takes 14-15 ms for files within a few per cent of the
-// size (first_frame.png 366 vs 371 KB, preview.png 441 vs 412 KB on the demo
-// set). Lossless: the pixels read back are the same; the bytes are
-// deterministic for a given zlib.
+// on every row): 38-39 ms CPU per 720x480 frame on a 2-vCPU development
+// machine, a third of the builder's encode stage. Level 1 with the Paeth
+// filter and zlib's run-length strategy takes 14-15 ms for files within a few
+// per cent of the size (first_frame.png 366 vs 371 KB, preview.png 441 vs
+// 412 KB on the demo set). Lossless: the pixels read back are the same; the
+// bytes are deterministic for a given zlib.
 
 #include <opencv2/core.hpp>
 #include <string>

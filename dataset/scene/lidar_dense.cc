@@ -1,5 +1,5 @@
 // Scene source "lidar-dense": a dense, metric frame-0 pointmap from LiDAR
-// alone, the paper's scaffold P_0 without a reconstruction (issue 22). The
+// alone, the paper's scaffold P_0 without a reconstruction. The
 // clip's static sweeps in a time window (dataset/scene/lidar_sweeps.h; the
 // window policy is SceneSourceOptions::dense_window) are projected into the
 // frame-0 camera scaled to `dense_width` (a z-buffer: the nearest return per

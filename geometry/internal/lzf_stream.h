@@ -3,7 +3,7 @@
 //
 // Why not liblzf's lzf_decompress (which the tests still use as the
 // reference): it copies literal runs and back-references byte by byte (about
-// 2 GB/s on the 2-vCPU development VM, on float data that hardly compresses)
+// 2 GB/s on a 2-vCPU development machine, on float data that hardly compresses)
 // and it needs the whole output in one buffer (160 MB for 10 M points,
 // page-faulted fresh on every read), and the whole input too. This decoder
 // reads its input in chunks, copies 16 and 32 bytes at a time where the

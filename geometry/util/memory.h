@@ -4,15 +4,16 @@
 // With glibc's defaults, large blocks (frames, packed clouds, scratch) are
 // returned to the operating system when freed (mmap threshold 128 KiB, raised
 // dynamically; heap tops trimmed past ~2x that), so a loop that renders clip
-// after clip page-faults every output byte again: on the 2-vCPU development VM
-// about half of a 25-frame render was kernel page-fault time, and two threads
-// faulting at once contend in the kernel. `ConfigureAllocatorForThroughput`
-// keeps freed memory in the process for reuse instead: blocks up to 32 MiB
-// come from the heap and heap tops are trimmed only past 1 GiB of free space.
-// Peak memory is unchanged; memory freed after a peak is held (up to the trim
-// threshold) until the process exits. The `geodrive` and `geodrive-diffusion`
-// binaries and the render benchmarks call it first thing; library code never
-// does. Setting GEODRIVE_MALLOC_DEFAULTS=1 in the environment skips it.
+// after clip page-faults every output byte again: on a 2-vCPU development
+// machine about half of a 25-frame render was kernel page-fault time, and two
+// threads faulting at once contend in the kernel.
+// `ConfigureAllocatorForThroughput` keeps freed memory in the process for reuse
+// instead: blocks up to 32 MiB come from the heap and heap tops are trimmed
+// only past 1 GiB of free space. Peak memory is unchanged; memory freed after a
+// peak is held (up to the trim threshold) until the process exits. The
+// `geodrive` and `geodrive-diffusion` binaries and the render benchmarks call
+// it first thing; library code never does. Setting GEODRIVE_MALLOC_DEFAULTS=1
+// in the environment skips it.
 
 #include <cstdint>
 

@@ -1,11 +1,11 @@
 #pragma once
 // Error types shared by every module.
 //
-// Convention (see README "Errors"): bad user input -- a missing or malformed
-// file, an invalid option value, an inconsistent dataset -- throws InputError
-// with a message that names the file (or table/record) and what is wrong. The
-// CLI maps InputError to exit code 2 and anything else to exit code 1 (internal
-// failure). Internal invariants use glog's CHECK.
+// Convention (docs/reference/exit-codes.md): bad user input -- a missing or
+// malformed file, an invalid option value, an inconsistent dataset -- throws
+// InputError with a message that names the file (or table/record) and what is
+// wrong. The CLI maps InputError to exit code 2 and anything else to exit code
+// 1 (internal failure). Internal invariants use glog's CHECK.
 
 #include <sstream>
 #include <stdexcept>

@@ -332,7 +332,7 @@ TEST(BuildDataset, GeodriveCompatPresetBuilds) {
 
 TEST(BuildDataset, BadOptionsAreInputErrors) {
   BuildDatasetOptions o = Options(test::MakeTempDir("build_bad_opts"));
-  // Encoder options fail at start (issue 19), before any clip is built.
+  // Encoder options fail at start, before any clip is built.
   BuildDatasetOptions crf = o;
   crf.video_crf = -1;
   EXPECT_THROW(BuildDataset(crf), InputError);
@@ -403,7 +403,7 @@ TEST(BuildDataset, RefinePosesReportsReprojectionRmsBeforeAndAfter) {
             std::string::npos);
 }
 
-// The job's contract on resume (issue 19): one run per output folder; a pair
+// The job's contract on resume: one run per output folder; a pair
 // counts as finished only when its files verify and its options are this
 // run's.
 TEST(BuildDataset, SecondRunOnTheSameOutIsRefused) {

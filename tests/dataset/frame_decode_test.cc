@@ -1,10 +1,11 @@
-// The builder's frame path (dataset/frame_decode.h, issue 23 "Frames"): which
-// DCT scale it decodes at, that the full-size path still gives the previous
-// pixels, that the output's pixel centres sit where the output intrinsics say
-// (a scaled decode's partial last row or column included), the PSNR of the
-// kDctScaled path against the full decode on the real scene-0916 frames and on
-// the synthetic demo frames, the area resampler against OpenCV's, the size
-// check, and the pair folder's PNG writer.
+// The builder's frame path (dataset/frame_decode.h; docs/PERFORMANCE.md,
+// "Dataset builder"): which DCT scale it decodes at, that the full-size path
+// gives a full decode + cv::resize's pixels, that the output's pixel centres
+// sit where the output intrinsics say (a scaled decode's partial last row or
+// column included), the PSNR of the kDctScaled path against the full decode
+// on the real scene-0916 frames and on the synthetic demo frames, the area
+// resampler against OpenCV's, the size check, and the pair folder's PNG
+// writer.
 
 #include "dataset/frame_decode.h"
 
@@ -63,8 +64,8 @@ TEST(FrameDecode, ScaleFollowsTheOutputSize) {
   };
   const ResizeMode kResize = ResizeMode::kResize;
   // Default: 1/8, 1/4, 1/2 (libjpeg-turbo's SIMD IDCTs) or 1/1, the smallest
-  // whose size covers the resized size. The issue's 720x480: a full decode (1/2
-  // is 450 rows), also centre-cropped (resized 853x480).
+  // whose size covers the resized size. The builder's 720x480: a full decode
+  // (1/2 is 450 rows), also centre-cropped (resized 853x480).
   EXPECT_EQ(scale(720, 480, kResize, false), "1/1");
   EXPECT_EQ(scale(720, 480, ResizeMode::kCenterCrop, false), "1/1");
   EXPECT_EQ(scale(800, 450, kResize, false), "1/2");
@@ -93,7 +94,7 @@ TEST(FrameDecode, ScaleFollowsTheOutputSize) {
       "1/1");
 }
 
-// kFull is the builder's previous path, pixel for pixel: full decode,
+// kFull is the reference path, pixel for pixel: full decode,
 // INTER_AREA whenever the width shrinks, crop.
 TEST(FrameDecode, FullModeGivesThePreviousPixels) {
   const std::vector<std::string> files = RealFrontFrames();
@@ -180,7 +181,7 @@ void ComparePaths(const std::vector<std::string>& files,
   }
 }
 
-// The issue's criterion, PSNR >= 40 dB against the full decode + resize, on
+// The target, PSNR >= 40 dB against the full decode + resize, on
 // every real CAM_FRONT keyframe of scene-0916. Measured (docs/PERFORMANCE.md):
 // the default path (full decode, then AreaResizeRgb: OpenCV's INTER_AREA
 // weights, sums in another order, so +-1 on a few pixels) 75.2 dB worst, 76.0
@@ -203,7 +204,7 @@ TEST(FrameDecode, DctScaledMatchesFullDecodeOnRealFrames) {
 }
 
 // The same on demo frames: the synthetic world of `geodrive synth --scenes 2
-// --seed 7` (the README demo), CAM_FRONT keyframes rendered and encoded as the
+// --seed 7` (scripts/demo.sh), CAM_FRONT keyframes rendered and encoded as the
 // writer does (JPEG quality 90), the same bytes as its samples/CAM_FRONT files.
 // Twelve of its 80 keyframes, six per scene, among them the two that are
 // furthest from the full path at 5/8 (scene-0001 at 8.0 and 8.5 s: 39.8 dB;
@@ -240,7 +241,7 @@ TEST(FrameDecode, DctScaledMatchesFullDecodeOnSyntheticDemoFrames) {
   PsnrStats dflt, all;
   ComparePaths(files, &dflt, &all);
   EXPECT_GE(dflt.worst, 70.0);
-  EXPECT_GE(all.worst, 38.0);  // 39.8 measured: under the issue's 40 dB
+  EXPECT_GE(all.worst, 38.0);  // 39.8 measured: under the 40 dB target
   std::printf(
       "vs full decode, 12 synthetic demo frames: default worst %.2f dB, mean "
       "%.2f dB; all M/8 scales worst %.2f dB, mean %.2f dB\n",

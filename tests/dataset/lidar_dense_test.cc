@@ -1,5 +1,5 @@
 // Depth completion (geometry/depth_completion.h) and the lidar-dense scene
-// source (issue 22): exact truth on synthetic depth images, held-out LiDAR
+// source: exact truth on synthetic depth images, held-out LiDAR
 // returns and frame-0 coverage on the real nuScenes scene-0916.
 
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Real nuScenes end to end (issue 18) on the whole real scene-0916 in
+// Real nuScenes end to end on the whole real scene-0916 in
 // ../shared/data/real/nuscenes_scene0916 (real tables with attribute,
 // visibility, log and map missing; keyframe files only, no sweeps).
 //
@@ -281,7 +281,7 @@ TEST_F(Scene0916, KeyframeClipsBuildWithLidarGeometry) {
                 "covered static pixels %.2f dB\n",
                 m.clip_id.c_str(), m.quality.coverage.front(), e.mean_coverage,
                 *m.quality.psnr_static.front());
-    // LiDAR scan lines cover a few percent of the image (issue 22: 9-18 %
+    // LiDAR scan lines cover a few percent of the image (9-18 %
     // at one pixel per point; the paper preset splats 1 px radius).
     EXPECT_GT(m.quality.coverage.front(), 0.03);
     // Covered pixels take the colour of the frame they came from: frame 0

@@ -172,7 +172,7 @@ TEST(Monst3rFolder, AllMinusInfConfidence) {
   ExpectInputError([&] { folder.LoadFrames({0, 1, 2}); }, "conf_1.npy");
 }
 
-// Issue 19: the message said "-inf (or NaN)" for a map of +inf.
+// A map of +inf is reported as +inf, not as "-inf (or NaN)".
 TEST(Monst3rFolder, AllPlusInfConfidenceSaysPlusInf) {
   const std::string dir = WriteSmallFolder("monst3r_pinf");
   std::vector<float> inf(64 * 36, std::numeric_limits<float>::infinity());
@@ -182,10 +182,10 @@ TEST(Monst3rFolder, AllPlusInfConfidenceSaysPlusInf) {
                    "conf_1.npy: confidence is not finite at any pixel (+inf");
 }
 
-// Issue 19: a confidence map of the wrong (huge) shape was allocated and read
-// before its shape was compared with the depth map's. The header alone now
-// refuses it: a 31623 x 31623 float32 map (4 GB declared) whose data is a
-// sparse file, so the test writes 80 bytes of header and seeks.
+// A confidence map of the wrong (huge) shape is refused from its header
+// alone, before any of it is allocated or read: a 31623 x 31623 float32 map
+// (4 GB declared) whose data is a sparse file, so the test writes 80 bytes of
+// header and seeks.
 TEST(Monst3rFolder, HugeConfidenceMapRefusedFromItsHeader) {
   const std::string dir = WriteSmallFolder("monst3r_hugeconf");
   const std::string path = dir + "/conf_0.npy";

@@ -11,7 +11,7 @@ cmake --build "$work/build" -j 2 > "$work/build.log"
 "$work/build/consumer"
 
 # The installed `geodrive` finds its installed commands plugin (<prefix>/<libdir>/geodrive), not
-# the build tree's (issue 23: commands are a plugin loaded on use).
+# the build tree's (commands are a plugin loaded on use).
 installed="$work/prefix/bin/geodrive"
 "$installed" --version
 loaded=$(LD_DEBUG=files "$installed" synth --help 2>&1 >/dev/null | grep -o '[^ =]*libgeodrive-commands.so' | sort -u)
@@ -20,7 +20,7 @@ case "$loaded" in
   *) echo "installed geodrive loaded '$loaded', not the plugin under $work/prefix" >&2; exit 1 ;;
 esac
 
-# The installed Python package (issue 20), when the build has it: importable from the prefix with
+# The installed Python package, when the build has it: importable from the prefix with
 # Debian's interpreter, outside the build tree.
 if [[ -d "$work/prefix/lib/python3/dist-packages/geodrive" ]]; then
   (cd "$work" && PYTHONPATH="$work/prefix/lib/python3/dist-packages" /usr/bin/python3 -c \

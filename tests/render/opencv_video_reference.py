@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The frames cv2.VideoCapture (OpenCV's FFmpeg backend, python3-opencv) decodes from a video:
 the reference tests/render/video_reader_test.cc compares ReadVideoFrames with, frame by frame
-(our reader replaced cv::VideoCapture in the library, issue 23).
+(the library reads videos with our own reader, not cv::VideoCapture).
 
 Usage: opencv_video_reference.py VIDEO OUT.rgb
 Writes every frame as RGB bytes, frame after frame, to OUT.rgb and prints "frames height width"."""

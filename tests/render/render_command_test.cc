@@ -73,7 +73,7 @@ TEST(RenderCommand, ImageDepthToVideoFramesAndReport) {
   EXPECT_LT(c5, c0);  // driving forward opens holes
 }
 
-// Issue 19: render streams chunks of frames to the video, the PNG sequence and
+// Render streams chunks of frames to the video, the PNG sequence and
 // the contact sheet (chunks of max(8, 2 x threads) frames). Different chunkings
 // must give the same bytes: over 40 frames, 1 thread renders chunks of 8 and
 // 16 threads chunks of 32 and 8.
@@ -113,8 +113,8 @@ TEST(RenderCommand, StreamedChunksGiveTheSameBytesForAnyChunking) {
               1e-12);
 }
 
-// Issue 19: a render.json that could not be written was ignored: the stream
-// opened, its writes failed and the run exited 0 with a truncated report.
+// A render.json that cannot be written is an error, not a run that exits 0
+// with a truncated report.
 // Here a file-size limit (ulimit -f 150 KiB, SIGXFSZ ignored, so writes fail
 // with EFBIG as on a full disk) lets the contact sheet through but not the
 // report of 2000 frames (about 300 KB): the run must say so and exit 2.
@@ -251,7 +251,7 @@ TEST(RenderCommand, BadInputExitsTwoWithOneLine) {
       << log;
 }
 
-// Option values are checked where parsed (issue 19): no silent fallback to
+// Option values are checked where parsed: no silent fallback to
 // the preset's value for a negative, NaN, trailing-text or out-of-range one.
 TEST(RenderCommand, InvalidOptionValuesExitTwoNamingTheOption) {
   const std::string dir = test::MakeTempDir("render_cmd_values");

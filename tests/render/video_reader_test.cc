@@ -1,10 +1,10 @@
 // ReadVideoFrames on video files: our FFmpeg reader (render/video/
-// ffmpeg_decode.h), which replaced cv::VideoCapture in the library (issue 23).
+// ffmpeg_decode.h), which the library uses instead of cv::VideoCapture.
 //  - Round trips through our own writers: frame count exact, PSNR against the
 //    raw frames at least the stated figure (lossless H.264: only the RGB ->
 //    4:2:0 -> RGB conversion is lost).
 //  - Frame-for-frame equality with cv2.VideoCapture (python3-opencv, the
-//    reader the library used before) on the videos the tests and the builder
+//    reference reader) on the videos the tests and the builder
 //    produce: H.264 (even and odd sizes), MPEG-4 'mp4v' in MP4 and Matroska,
 //    MJPEG in AVI.
 //  - Bad input: one InputError naming the file (missing, not a video,
