@@ -200,6 +200,21 @@ PinholeCamera CameraFrom(const CArray<double>& K, int width, int height) {
   return c;
 }
 
+// Colours and images are uint8 in 0..255, and nothing else is converted to
+// them: a float array in [0, 1] would become black and one in 0..255 would
+// be truncated, uint16 would wrap (the forcecast of CArray<uint8_t>). Any
+// other dtype is a ValueError naming the argument and the conversion to make.
+CArray<uint8_t> Uint8Array(const py::array& a, const char* what) {
+  if (!a.dtype().is(py::dtype::of<uint8_t>())) {
+    ThrowInputError(
+        what, "dtype ", py::str(a.dtype()).cast<std::string>(),
+        ", expected uint8 in 0..255 (floats in [0, 1]: "
+        "(x * 255).round().astype(numpy.uint8); uint16: scale to 0..255 "
+        "first)");
+  }
+  return CArray<uint8_t>::ensure(a);
+}
+
 // An (H, W, 3) uint8 or (H, W) image as a cv::Mat sharing the buffer.
 cv::Mat ImageView(const CArray<uint8_t>& a, const char* what) {
   GEODRIVE_CHECK_INPUT((a.ndim() == 3 && a.shape(2) == 3) || a.ndim() == 2,
@@ -550,7 +565,7 @@ void BindScenes(py::module_& m) {
 void BindRender(py::module_& m) {
   m.def(
       "render",
-      [](const CArray<float>& points, const CArray<uint8_t>& colors,
+      [](const CArray<float>& points, const py::array& colors_in,
          const CArray<double>& K, const CArray<double>& cam_from_world,
          std::pair<int, int> size, const std::string& mode, double radius,
          double near, double far, int threads, py::object out,
@@ -558,6 +573,7 @@ void BindRender(py::module_& m) {
          std::optional<CArray<float>> footprint_axes,
          double max_magnification) {
         CheckShape(points, {-1, 3}, "points");
+        const CArray<uint8_t> colors = Uint8Array(colors_in, "colors");
         CheckShape(colors, {points.shape(0), 3}, "colors");
         const int H = size.first, W = size.second;
         RenderOptions o;
@@ -702,12 +718,13 @@ void BindRender(py::module_& m) {
 void BindEditedRender(py::module_& m) {
   m.def(
       "render_with_edits",
-      [](const CArray<float>& points, const CArray<uint8_t>& colors,
+      [](const CArray<float>& points, const py::array& colors_in,
          const CArray<double>& K, const CArray<double>& cam_from_world,
          const PathArg& boxes_json, std::pair<int, int> size,
          const std::string& mode, const std::vector<std::string>& remove,
-         double radius, std::optional<CArray<uint8_t>> frame0_image) {
+         double radius, std::optional<py::array> frame0_image) {
         CheckShape(points, {-1, 3}, "points");
+        const CArray<uint8_t> colors = Uint8Array(colors_in, "colors");
         CheckShape(colors, {points.shape(0), 3}, "colors");
         const int H = size.first, W = size.second;
         RenderOptions ro;
@@ -721,7 +738,9 @@ void BindEditedRender(py::module_& m) {
                              "' is not one of 3d, 2d");
         eo.mode = mode == "3d" ? EditMode::k3d : EditMode::k2d;
         if (frame0_image)
-          eo.frame0_image = ImageView(*frame0_image, "frame0_image").clone();
+          eo.frame0_image = ImageView(Uint8Array(*frame0_image, "frame0_image"),
+                                      "frame0_image")
+                                .clone();
         const PinholeCamera camera = CameraFrom(K, W, H);
         const std::vector<Rigid3d> poses =
             Poses(cam_from_world, "cam_from_world");
@@ -830,7 +849,9 @@ void BindTrajectories(py::module_& m) {
 void BindMetrics(py::module_& m) {
   m.def(
       "psnr",
-      [](const CArray<uint8_t>& a, const CArray<uint8_t>& b) {
+      [](const py::array& a_in, const py::array& b_in) {
+        const CArray<uint8_t> a = Uint8Array(a_in, "a"),
+                              b = Uint8Array(b_in, "b");
         const cv::Mat ma = ImageView(a, "a"), mb = ImageView(b, "b");
         py::gil_scoped_release release;
         return Psnr(ma, mb);
@@ -838,7 +859,9 @@ void BindMetrics(py::module_& m) {
       py::arg("a"), py::arg("b"), "PSNR (dB) of two uint8 images (peak 255).");
   m.def(
       "ssim",
-      [](const CArray<uint8_t>& a, const CArray<uint8_t>& b) {
+      [](const py::array& a_in, const py::array& b_in) {
+        const CArray<uint8_t> a = Uint8Array(a_in, "a"),
+                              b = Uint8Array(b_in, "b");
         const cv::Mat ma = ImageView(a, "a"), mb = ImageView(b, "b");
         py::gil_scoped_release release;
         return Ssim(ma, mb);

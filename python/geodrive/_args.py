@@ -173,6 +173,11 @@ def _check(type_, value, core):
         except (TypeError, ValueError, OverflowError):
             raise _must("a %s array (or array-like)" % dtype, value) from None
         return
+    if type_ == "numpy.ndarray":  # dtype checked by the function itself
+        if not isinstance(value, _np.ndarray) and \
+                _np.asarray(value).dtype == object:
+            raise _must("a numpy array", value)
+        return
     if type_.startswith(("Tuple[", "List[")) and type_.endswith("]"):
         items = _split_top(type_[type_.index("[") + 1:-1])
         if type_.startswith("Tuple["):

@@ -317,3 +317,29 @@ def test_file_system_errors_name_the_path(tmp_path):
             assert e.value.filename == long_path
         else:
             assert long_path in str(e.value)
+
+
+def test_colours_and_images_are_uint8_never_coerced():
+    """Float colours in [0, 1] used to render black, float and uint16 images
+    gave PSNR 62 dB for a 29 dB pair: every non-uint8 colour or image is a
+    ValueError naming the argument and the conversion to make."""
+    pts = np.array([[0, 0, 5.0]], np.float32)
+    K = np.array([[100.0, 0, 50], [0, 100.0, 50], [0, 0, 1]])
+    poses = np.eye(4)[None]
+    bad = [np.ones((1, 3)), np.ones((1, 3), np.float32), np.full((1, 3), 200, np.uint16),
+           np.full((1, 3), 200, np.int64), np.full((1, 3), True)]
+    for colors in bad:
+        with pytest.raises(ValueError, match=r"^colors: dtype \w+, expected uint8"):
+            geodrive.render(pts, colors, K, poses, size=(100, 100))
+    ok = geodrive.render(pts, np.full((1, 3), 200, np.uint8), K, poses, size=(100, 100))
+    assert ok["rgb"][0, 50, 50].tolist() == [200, 200, 200]
+    a = np.random.default_rng(0).integers(0, 256, (16, 16, 3)).astype(np.uint8)
+    b = np.clip(a.astype(int) + 8, 0, 255).astype(np.uint8)
+    for dtype in (np.float32, np.float64, np.uint16):
+        with pytest.raises(ValueError, match=r"^a: dtype"):
+            geodrive.psnr(a.astype(dtype), b)
+        with pytest.raises(ValueError, match=r"^b: dtype"):
+            geodrive.ssim(a, b.astype(dtype))
+    # The uint8 figure is the reference formula's.
+    mse = ((a.astype(float) - b.astype(float)) ** 2).mean()
+    assert abs(geodrive.psnr(a, b) - 10 * np.log10(255 ** 2 / mse)) < 1e-9
