@@ -384,6 +384,13 @@ Weights LoadWeights(const std::string& path,
       ThrowInputError(path, "tensor '", stored, "' has non-float dtype ",
                       ckpt.Entry(stored).dtype);
     }
+    // A NaN or Inf in a weight spreads to every output (a black video, a NaN
+    // loss) without any other sign: refused here, naming the tensor.
+    if (!at::isfinite(t).all().item<bool>()) {
+      const int64_t bad = (~at::isfinite(t)).sum().item<int64_t>();
+      ThrowInputError(path, "tensor '", stored, "' holds ", bad,
+                      " NaN or Inf value(s)");
+    }
     w.Set(s.name, Place(t, s.name, placement));
   }
   if (report != nullptr) *report = std::move(r);

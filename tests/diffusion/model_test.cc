@@ -172,6 +172,41 @@ TEST(DiffusionModel, LoaderRoundTripExactAndReport) {
   }
 }
 
+// Non-finite weights are an error naming the tensor, in every dtype the
+// checkpoints use (a NaN in the VAE gave an all-black video and exit 0).
+TEST(DiffusionModel, NonFiniteWeightsAreRefusedNamingTheTensor) {
+  const DiTConfig c = ConfigPreset("tiny");
+  const Weights backbone = InitWeights(BackboneParamSpecs(c), 5);
+  const std::string dir = test::MakeTempDir("diffusion_nan_weights");
+  const std::string victim = "proj_out.weight";
+  int k = 0;
+  for (const double bad : {NAN, INFINITY, -INFINITY}) {
+    for (const auto dtype : {at::kFloat, at::kBFloat16, at::kHalf}) {
+      NamedTensors all;
+      AppendForSave(backbone, "", &all);
+      for (auto& [n, t] : all) {
+        t = t.to(dtype);
+        if (n == victim) {
+          t = t.clone();
+          t.view({-1})[3] = bad;
+        }
+      }
+      const std::string path =
+          dir + "/w" + std::to_string(k++) + ".safetensors";
+      SaveSafetensors(path, all);
+      try {
+        LoadWeights(path, BackboneParamSpecs(c), "", true, nullptr);
+        ADD_FAILURE() << "accepted " << bad << " in dtype " << dtype;
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("tensor '" + victim +
+                                             "' holds 1 NaN or Inf"),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+  }
+}
+
 TEST(DiffusionModel, OptimiserStepOnEncoderLeavesBackboneFrozen) {
   const DiTConfig c = ConfigPreset("tiny");
   Weights backbone = InitWeights(BackboneParamSpecs(c), 11);
