@@ -333,8 +333,8 @@ int RunEval(const EvalArgs& args) {
       record.pred_path = pair.pred_path;
       record.gt_path = pair.gt_path;
       if (!fid && !fvd) {  // frame by frame: stream both videos
-        ComparePairStreaming(pair, image, lpips_net.get(),
-                             report.frame_options, &record);
+        ComparePairStreaming(pair, image, lpips_net.get(), report.frame_options,
+                             &record);
         report.videos.push_back(std::move(record));
         continue;
       }

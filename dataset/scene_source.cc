@@ -64,8 +64,9 @@ void CheckLidarDenseMemory(const std::string& what,
                            int64_t height) {
   const uint64_t need = EstimateLidarDenseBytes(width, height);
   const uint64_t available = AvailableMemoryBytes();
-  GEODRIVE_CHECK_INPUT(need <= available, what, ": a lidar-dense frame-0 depth of ", width,
-                       "x", height, " needs about ", (need + (1 << 20) - 1) >> 20,
+  GEODRIVE_CHECK_INPUT(need <= available, what,
+                       ": a lidar-dense frame-0 depth of ", width, "x", height,
+                       " needs about ", (need + (1 << 20) - 1) >> 20,
                        " MiB, and ", available >> 20, " MiB are available");
 }
 

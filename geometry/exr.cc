@@ -6,7 +6,6 @@
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
-
 #include <unistd.h>
 
 #include <algorithm>
@@ -64,9 +63,8 @@ void CheckExrHeader(const std::string& path) {
   const uint64_t file_size = in.size();
   std::vector<uint8_t> head(static_cast<size_t>(
       std::min<uint64_t>(file_size, SizeLimits::kMaxExrHeaderBytes)));
-  if (!head.empty() &&
-      ::pread(in.fd(), head.data(), head.size(), 0) !=
-          static_cast<ssize_t>(head.size())) {
+  if (!head.empty() && ::pread(in.fd(), head.data(), head.size(), 0) !=
+                           static_cast<ssize_t>(head.size())) {
     ThrowInputError(path, "cannot read the EXR header");
   }
   GEODRIVE_CHECK_INPUT(head.size() >= 8 && ReadI32(head.data()) == 20000630,
@@ -83,9 +81,9 @@ void CheckExrHeader(const std::string& path) {
   };
   // A NUL-terminated string at `at`.
   const auto read_string = [&]() {
-    const void* end = at < head.size() ? std::memchr(head.data() + at, 0,
-                                                     head.size() - at)
-                                       : nullptr;
+    const void* end = at < head.size()
+                          ? std::memchr(head.data() + at, 0, head.size() - at)
+                          : nullptr;
     if (end == nullptr) truncated();
     const size_t n = static_cast<const uint8_t*>(end) - (head.data() + at);
     std::string out(reinterpret_cast<const char*>(head.data() + at), n);
@@ -123,8 +121,7 @@ void CheckExrHeader(const std::string& path) {
           part.bytes_per_pixel += ReadI32(v + c) == 1 ? 2 : 4;
           c += 16;
         }
-      } else if (name == "compression" && type == "compression" &&
-                 size >= 1) {
+      } else if (name == "compression" && type == "compression" && size >= 1) {
         part.compression = v[0];
       } else if (name == "tiles" && type == "tiledesc" && size >= 8) {
         part.tiled = true;
@@ -140,15 +137,15 @@ void CheckExrHeader(const std::string& path) {
     if (at < head.size() && head[at] == 0) break;  // the empty header
   }
   const uint64_t header_end = at + (multipart ? 1 : 0);
-  const uint64_t after_header = file_size > header_end ? file_size - header_end : 0;
+  const uint64_t after_header =
+      file_size > header_end ? file_size - header_end : 0;
   uint64_t min_chunks = 0, pixel_bytes = 0;
   bool uncompressed = true;
   for (const ExrPart& p : parts) {
     GEODRIVE_CHECK_INPUT(p.has_window, path,
                          ": the EXR header has no dataWindow");
     GEODRIVE_CHECK_INPUT(
-        p.width >= 1 && p.height >= 1 &&
-            p.width <= SizeLimits::kMaxImageSide &&
+        p.width >= 1 && p.height >= 1 && p.width <= SizeLimits::kMaxImageSide &&
             p.height <= SizeLimits::kMaxImageSide &&
             p.width * p.height <= SizeLimits::kMaxImagePixels,
         path, ": data window ", p.width, "x", p.height,

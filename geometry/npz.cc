@@ -38,7 +38,8 @@ struct NpzReader::Impl {
       std::string have;
       for (size_t i = 0; i < keys.size() && i < 20; ++i)
         have += (have.empty() ? "" : ", ") + keys[i];
-      if (keys.size() > 20) have += ", ... (" + std::to_string(keys.size()) + ")";
+      if (keys.size() > 20)
+        have += ", ... (" + std::to_string(keys.size()) + ")";
       ThrowInputError(path, "no array '", key, "' (it has: ", have, ")");
     }
     return it->second;

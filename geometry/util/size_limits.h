@@ -74,12 +74,12 @@ inline void CheckDeclaredSize(const std::string& file,
 
 // `uncompressed` bytes from `compressed` bytes: refused above
 // SizeLimits::kMaxCompressionRatio (past SizeLimits::kRatioFreeBytes).
-inline void CheckCompressionRatio(const std::string& file,
-                                  const std::string& what,
-                                  uint64_t uncompressed,
-                                  uint64_t compressed,
-                                  uint64_t ratio =
-                                      SizeLimits::kMaxCompressionRatio) {
+inline void CheckCompressionRatio(
+    const std::string& file,
+    const std::string& what,
+    uint64_t uncompressed,
+    uint64_t compressed,
+    uint64_t ratio = SizeLimits::kMaxCompressionRatio) {
   if (uncompressed <= SizeLimits::kRatioFreeBytes) return;
   if (uncompressed / ratio > compressed ||
       (uncompressed / ratio == compressed && uncompressed % ratio != 0)) {
@@ -95,8 +95,8 @@ inline void CheckDeclaredCount(const std::string& file,
                                uint64_t declared,
                                uint64_t limit) {
   if (declared > limit) {
-    ThrowInputError(file, what, " declares ", declared,
-                    ", over the limit of ", limit);
+    ThrowInputError(file, what, " declares ", declared, ", over the limit of ",
+                    limit);
   }
 }
 

@@ -11,9 +11,9 @@ extern "C" {
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>
-#include <deque>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <mutex>
 #include <opencv2/imgproc.hpp>
 
@@ -84,12 +84,19 @@ void OpenContainer(const std::string& path, Decoder* d) {
 
 // Finds the video stream and checks its declared size, frame count and index
 // before any frame is decoded.
-void FindVideoStream(const std::string& path, Decoder* d) {
+// With `whole` (every frame to be held), the declared frame count too.
+void FindVideoStream(const std::string& path, Decoder* d, bool whole) {
   AVFormatContext* fmt = d->fmt;
   for (unsigned i = 0; i < fmt->nb_streams; ++i) {
     const AVCodecParameters* par = fmt->streams[i]->codecpar;
-    if (par->codec_type == AVMEDIA_TYPE_VIDEO && par->width != 0)
+    if (par->codec_type == AVMEDIA_TYPE_VIDEO && par->width != 0) {
       CheckFrameSize(path, par->width, par->height);
+      if (whole) {
+        CheckVideoFramesFit(path,
+                            std::max<int64_t>(0, fmt->streams[i]->nb_frames),
+                            par->width, par->height);
+      }
+    }
   }
   // Decoders opened while probing stay within the same pixel limit.
   std::vector<AVDictionary*> options(fmt->nb_streams, nullptr);
@@ -290,31 +297,35 @@ struct VideoFileReader::Impl {
   Decoder d;
 };
 
-VideoFileReader::VideoFileReader(const std::string& path) : impl_(new Impl) {
+VideoFileReader::VideoFileReader(const std::string& path, bool whole)
+    : impl_(new Impl) {
   impl_->path = path;
   InstallFfmpegLogCapture();
   TakeFfmpegLogMessage();  // forget what an earlier call left
   OpenContainer(path, &impl_->d);
-  FindVideoStream(path, &impl_->d);
+  FindVideoStream(path, &impl_->d, whole);
   OpenDecoder(path, &impl_->d);
 }
 
 VideoFileReader::~VideoFileReader() = default;
 
 int VideoFileReader::width() const {
-  const AVCodecParameters* par = impl_->d.fmt->streams[impl_->d.stream]->codecpar;
+  const AVCodecParameters* par =
+      impl_->d.fmt->streams[impl_->d.stream]->codecpar;
   const bool swapped = impl_->d.rotation == 90 || impl_->d.rotation == 270;
   return swapped ? par->height : par->width;
 }
 
 int VideoFileReader::height() const {
-  const AVCodecParameters* par = impl_->d.fmt->streams[impl_->d.stream]->codecpar;
+  const AVCodecParameters* par =
+      impl_->d.fmt->streams[impl_->d.stream]->codecpar;
   const bool swapped = impl_->d.rotation == 90 || impl_->d.rotation == 270;
   return swapped ? par->width : par->height;
 }
 
 int64_t VideoFileReader::declared_frames() const {
-  return std::max<int64_t>(0, impl_->d.fmt->streams[impl_->d.stream]->nb_frames);
+  return std::max<int64_t>(0,
+                           impl_->d.fmt->streams[impl_->d.stream]->nb_frames);
 }
 
 int64_t VideoFileReader::frames_read() const { return impl_->d.taken; }
@@ -343,17 +354,17 @@ void CheckVideoFramesFit(const std::string& path,
                          int64_t height) {
   CheckDeclaredCount(path, "the video", static_cast<uint64_t>(frames),
                      SizeLimits::kMaxVideoFrames);
-  CheckAllocation(path,
-                  std::to_string(frames) + " decoded frames of " +
-                      std::to_string(width) + "x" + std::to_string(height),
-                  SaturatingMul(static_cast<uint64_t>(frames),
-                                static_cast<uint64_t>(
-                                    VideoFrameBytes(width, height))),
-                  SizeLimits::kMaxVideoDecodeBytes);
+  CheckAllocation(
+      path,
+      std::to_string(frames) + " decoded frames of " + std::to_string(width) +
+          "x" + std::to_string(height),
+      SaturatingMul(static_cast<uint64_t>(frames),
+                    static_cast<uint64_t>(VideoFrameBytes(width, height))),
+      SizeLimits::kMaxVideoDecodeBytes);
 }
 
 std::vector<cv::Mat> DecodeVideoFileRgb(const std::string& path) {
-  VideoFileReader reader(path);
+  VideoFileReader reader(path, /*whole=*/true);
   // The declared frame count against the limits before any frame is decoded,
   // then the frames decoded so far, frame by frame.
   CheckVideoFramesFit(path, reader.declared_frames(), reader.width(),

@@ -45,10 +45,12 @@ struct VideoReadLimits {
 // A video file decoded one frame at a time (memory: one frame and the
 // decoder's own buffers, whatever the length). The constructor opens the
 // container and the decoder and checks the declared frame size; Next()
-// throws InputError naming the file as DecodeVideoFileRgb does.
+// throws InputError naming the file as DecodeVideoFileRgb does. With `whole`
+// (the caller keeps every frame) the declared frame count is checked against
+// the limits before the container's streams are probed.
 class VideoFileReader {
  public:
-  explicit VideoFileReader(const std::string& path);
+  explicit VideoFileReader(const std::string& path, bool whole = false);
   ~VideoFileReader();
   VideoFileReader(const VideoFileReader&) = delete;
   VideoFileReader& operator=(const VideoFileReader&) = delete;

@@ -82,7 +82,8 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
   // npz: a member declaring 3 GiB in a few hundred bytes.
   {
     std::vector<float> v(100, 1.f);
-    WriteNpz(dir + "/good.npz", {{"depth", NpyArray::Float32({100}, v.data())}});
+    WriteNpz(dir + "/good.npz",
+             {{"depth", NpyArray::Float32({100}, v.data())}});
     std::string zip = test::ReadFile(dir + "/good.npz");
     for (size_t at = zip.find("PK\x03\x04"); at != std::string::npos;
          at = zip.find("PK\x03\x04", at + 4))
@@ -91,7 +92,8 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
          at = zip.find("PK\x01\x02", at + 4))
       Put32(&zip, at + 24, 3u << 30);
     test::WriteFile(dir + "/huge.npz", zip);
-    cases.push_back({"npz", [&] { NpzReader(dir + "/huge.npz").Read("depth"); }});
+    cases.push_back(
+        {"npz", [&] { NpzReader(dir + "/huge.npz").Read("depth"); }});
   }
   // npy: a header declaring 10^10 floats over 1 KB of data.
   {
@@ -109,14 +111,14 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
       return n + '\0' + t + '\0' + Le32(static_cast<int32_t>(v.size())) + v;
     };
     const std::string box = Le32(0) + Le32(0) + Le32(16383) + Le32(16383);
-    std::string exr = Le32(20000630) + Le32(2) +
-                      attr("channels", "chlist",
-                           std::string("Z") + '\0' + Le32(2) +
-                               std::string(4, '\0') + Le32(1) + Le32(1) +
-                               '\0') +
-                      attr("compression", "compression", std::string(1, 0)) +
-                      attr("dataWindow", "box2i", box) +
-                      attr("displayWindow", "box2i", box) + '\0';
+    std::string exr =
+        Le32(20000630) + Le32(2) +
+        attr("channels", "chlist",
+             std::string("Z") + '\0' + Le32(2) + std::string(4, '\0') +
+                 Le32(1) + Le32(1) + '\0') +
+        attr("compression", "compression", std::string(1, 0)) +
+        attr("dataWindow", "box2i", box) + attr("displayWindow", "box2i", box) +
+        '\0';
     exr += std::string(16384 * 8, '\0');
     test::WriteFile(dir + "/huge.exr", exr);
     cases.push_back({"EXR", [&] { ReadExr(dir + "/huge.exr", {"Z"}); }});
@@ -174,8 +176,8 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
   }
 
   // safetensors: a header length field of 2^60, through the LibTorch binary.
-  const std::string diffusion = std::string(GEODRIVE_BINARY_DIR) +
-                                "/diffusion/geodrive-diffusion";
+  const std::string diffusion =
+      std::string(GEODRIVE_BINARY_DIR) + "/diffusion/geodrive-diffusion";
   if (std::filesystem::exists(diffusion)) {
     std::string st(8, '\0');
     st[7] = 0x10;  // 2^60, little-endian
@@ -185,8 +187,8 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
         "exec " + diffusion + " check-weights --weights " + dir +
             "/huge.safetensors > " + dir + "/safetensors.txt 2>&1",
         &code);
-    std::cout << "safetensors (geodrive-diffusion, exit " << code
-              << "): peak " << kb / 1024 << " MB resident, "
+    std::cout << "safetensors (geodrive-diffusion, exit " << code << "): peak "
+              << kb / 1024 << " MB resident, "
               << test::ReadFile(dir + "/safetensors.txt");
     EXPECT_EQ(code, 2);
     EXPECT_LT(kb, kBoundKb);

@@ -119,9 +119,8 @@ TEST(DeclaredSizes, HostileNpzArchivesAreRefusedBeforeInflating) {
 
   // 4. A bzip2 bomb: 64 MiB of zeros in a few hundred bytes (over 1100:1).
   if (zip_compression_method_supported(ZIP_CM_BZIP2, 1)) {
-    std::string zeros = NpyText(NpyArray::Zeros(NpyDtype::kFloat32,
-                                                {16 << 20}),
-                                dir);
+    std::string zeros =
+        NpyText(NpyArray::Zeros(NpyDtype::kFloat32, {16 << 20}), dir);
     WriteZip(dir + "/bomb.npz", {{"depth.npy", zeros}}, ZIP_CM_BZIP2);
     e = ErrorOf([&] { ReadAll(dir + "/bomb.npz"); });
     std::cout << e << "\n";
@@ -161,8 +160,8 @@ TEST(DeclaredSizes, HostileNpzArchivesAreRefusedBeforeInflating) {
 
 TEST(DeclaredSizes, NpzMemberCountIsLimitedAndListedInLinearTime) {
   const std::string dir = test::MakeTempDir("sizes_npz_members");
-  const std::string member = NpyText(NpyArray::Zeros(NpyDtype::kUint8, {1}),
-                                     dir);
+  const std::string member =
+      NpyText(NpyArray::Zeros(NpyDtype::kUint8, {1}), dir);
   // Under the limit: opening and looking every member up is linear (the
   // quadratic list took minutes at 200k members).
   std::vector<std::pair<std::string, std::string>> members;
@@ -176,9 +175,9 @@ TEST(DeclaredSizes, NpzMemberCountIsLimitedAndListedInLinearTime) {
     for (const std::string& key : npz.Keys()) ASSERT_TRUE(npz.Has(key));
     EXPECT_EQ(npz.Read("m59999").bytes.size(), 1u);
   }
-  const double seconds = std::chrono::duration<double>(
-                             std::chrono::steady_clock::now() - start)
-                             .count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+          .count();
   std::cout << "60000 members opened and looked up in " << seconds << " s\n";
   EXPECT_LT(seconds, 20.0);
   // Over the limit: refused from the count.
@@ -186,8 +185,9 @@ TEST(DeclaredSizes, NpzMemberCountIsLimitedAndListedInLinearTime) {
     members.push_back({"m" + std::to_string(i) + ".npy", member});
   WriteZip(dir + "/too_many.npz", members, ZIP_CM_STORE);
   const std::string e = ErrorOf([&] { NpzReader(dir + "/too_many.npz"); });
-  EXPECT_EQ(e, dir + "/too_many.npz: the archive declares 65537, over the "
-                     "limit of 65536");
+  EXPECT_EQ(e, dir +
+                   "/too_many.npz: the archive declares 65537, over the "
+                   "limit of 65536");
 }
 
 // An EXR file: magic, version (flags), the attributes, the end of the header,

@@ -42,11 +42,8 @@ std::string ErrorOf(const std::string& path) {
 // An MJPEG AVI of `n` frames of w x h whose headers declare `frames` frames
 // (avih dwTotalFrames, strh dwLength) and, when given, frames of `side` x
 // `side` (strf biWidth, biHeight).
-std::string HostileAvi(const std::string& dir,
-                       int w,
-                       int h,
-                       uint32_t frames,
-                       uint32_t side = 0) {
+std::string HostileAvi(
+    const std::string& dir, int w, int h, uint32_t frames, uint32_t side = 0) {
   WriteVideoFrames(dir + "/small.avi", Frames(2, w, h), 10);
   std::string avi = test::ReadFile(dir + "/small.avi");
   const size_t avih = avi.find("avih");
@@ -87,7 +84,7 @@ TEST(VideoSizes, DeclaredFrameCountsAndSizesAreCheckedBeforeDecoding) {
   // width and height of the 'avc1' entry).
   WriteH264Mp4(dir + "/good.mp4", Frames(3, 64, 48));
   std::string mp4 = test::ReadFile(dir + "/good.mp4");
-  const size_t avc1 = mp4.find("avc1");
+  const size_t avc1 = mp4.find("avc1", mp4.find("stsd"));
   ASSERT_NE(avc1, std::string::npos);
   for (const size_t at : {avc1 + 28, avc1 + 30}) {
     mp4[at] = static_cast<char>(40000 >> 8);
