@@ -343,3 +343,64 @@ def test_colours_and_images_are_uint8_never_coerced():
     # The uint8 figure is the reference formula's.
     mse = ((a.astype(float) - b.astype(float)) ** 2).mean()
     assert abs(geodrive.psnr(a, b) - 10 * np.log10(255 ** 2 / mse)) < 1e-9
+
+
+def test_pair_dataset_reads_through_the_cpp_checks(pairs, tmp_path):
+    """PairDataset goes through ReadPair's checks and the frame counts of
+    meta.json: a short gt.mp4, a pair_dir that climbs out or is absolute, a
+    clip id that is not a folder name, a pair whose meta.json names another
+    clip and a missing video are each one ValueError naming the problem."""
+    torch = _torch()
+    if torch is None:
+        pytest.skip("torch missing")
+    import shutil
+    from geodrive.torch import PairDataset
+    src = os.path.dirname(pairs)
+    lines = [json.loads(l) for l in open(pairs)]
+    assert len(lines) >= 2
+
+    def build(name, edit_line=None, edit_tree=None):
+        root = tmp_path / name
+        shutil.copytree(src, root, symlinks=True)
+        first = dict(lines[0])
+        if edit_line:
+            edit_line(first)
+        with open(root / "manifest.jsonl", "w") as f:
+            f.write(json.dumps(first) + "\n")
+        if edit_tree:
+            edit_tree(root / lines[0]["pair_dir"], root)
+        return PairDataset(root / "manifest.jsonl")
+
+    ok = build("ok")
+    item = ok[0]
+    assert item["gt"].shape[0] == lines[0]["num_frames"]
+
+    def short_gt(pair, root):  # a 10-frame gt.mp4 beside a 25-frame cond.mp4
+        frames = geodrive.read_video(str(pair / "gt.mp4"))[:10]
+        cv2 = pytest.importorskip("cv2")
+        w = cv2.VideoWriter(str(pair / "gt_short.mp4"), cv2.VideoWriter_fourcc(*"mp4v"),
+                            10, (frames.shape[2], frames.shape[1]))
+        for f in frames:
+            w.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+        w.release()
+        os.replace(pair / "gt_short.mp4", pair / "gt.mp4")
+
+    # Each case fails when the dataset opens (manifest lines are checked as
+    # they are read) or when the item is read: either is the same ValueError.
+    cases = [
+        (lambda: build("short", edit_tree=short_gt)[0],
+         r"gt video has 10 frames, meta.json lists"),
+        (lambda: build("climb", edit_line=lambda e: e.update(
+            pair_dir="../" + os.path.basename(src)))[0], r"climbs out"),
+        (lambda: build("absolute", edit_line=lambda e: e.update(
+            pair_dir=os.path.abspath(src)))[0], r"is absolute"),
+        (lambda: build("badid", edit_line=lambda e: e.update(clip_id="../x"))[0],
+         r"not a plain folder name"),
+        (lambda: build("otherclip", edit_line=lambda e: e.update(
+            clip_id=lines[1]["clip_id"]))[0], r"differs from the manifest"),
+        (lambda: build("novideo", edit_tree=lambda pair, root: os.remove(
+            pair / "cond.mp4"))[0], r"cond.mp4: missing"),
+    ]
+    for read, message in cases:
+        with pytest.raises(ValueError, match=message):
+            read()
