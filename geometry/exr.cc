@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <cstring>
 #include <exception>
+#include <string>
+#include <unordered_map>
 
 #include "geometry/util/input_file.h"
 #include "geometry/util/size_limits.h"
@@ -53,6 +55,23 @@ struct ExrPart {
   int64_t tile_w = 0, tile_h = 0;
   int64_t chunk_count = -1;  // multi-part files declare it
 };
+
+// The size of a value of EXR attribute type `type` (OpenEXR's standard
+// attribute types), or -1 for types of variable size (strings, channel lists,
+// previews, unknown types).
+int FixedAttributeSize(const std::string& type) {
+  static const std::unordered_map<std::string, int> kSizes = {
+      {"int", 4},         {"float", 4},     {"double", 8},
+      {"box2i", 16},      {"box2f", 16},    {"v2i", 8},
+      {"v2f", 8},         {"v2d", 16},      {"v3i", 12},
+      {"v3f", 12},        {"v3d", 24},      {"m33f", 36},
+      {"m33d", 72},       {"m44f", 64},     {"m44d", 128},
+      {"compression", 1}, {"lineOrder", 1}, {"envmap", 1},
+      {"tiledesc", 9},    {"rational", 8},  {"chromaticities", 32},
+      {"keycode", 28},    {"timecode", 8},  {"deepImageState", 1}};
+  const auto it = kSizes.find(type);
+  return it == kSizes.end() ? -1 : it->second;
+}
 
 // Parses the header (every part's attributes) from `head`, the file's first
 // bytes, and checks each declared size against the limits and the file's
@@ -103,6 +122,16 @@ void CheckExrHeader(const std::string& path) {
       GEODRIVE_CHECK_INPUT(size >= 0, path, ": EXR attribute '", name,
                            "' declares a size of ", size, " bytes");
       if (at + static_cast<uint64_t>(size) > head.size()) truncated();
+      // A value of a fixed-size type declares exactly that size: otherwise
+      // OpenEXR reads the value's bytes and this parser skips `size`, the
+      // two disagree from there on, and OpenEXR acts on attributes this
+      // check never saw (a fuzzed chunkCount of 10 bytes made it allocate
+      // and clear a huge table).
+      const int fixed = FixedAttributeSize(type);
+      GEODRIVE_CHECK_INPUT(fixed < 0 || size == fixed, path,
+                           ": EXR attribute '", name, "' of type ", type,
+                           " declares ", size, " bytes (the type has ", fixed,
+                           ")");
       const uint8_t* v = head.data() + at;
       if (name == "dataWindow" && type == "box2i" && size == 16) {
         part.has_window = true;

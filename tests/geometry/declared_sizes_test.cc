@@ -230,9 +230,9 @@ std::vector<ExrAttribute> Header(int w, int h, int compression) {
           {"dataWindow", "box2i", Box(0, 0, w - 1, h - 1)},
           {"displayWindow", "box2i", Box(0, 0, w - 1, h - 1)},
           {"lineOrder", "lineOrder", std::string(1, '\0')},
-          {"pixelAspectRatio", "float", "\0\0\x80\x3f"},
+          {"pixelAspectRatio", "float", std::string("\0\0\x80\x3f", 4)},
           {"screenWindowCenter", "v2f", std::string(8, '\0')},
-          {"screenWindowWidth", "float", "\0\0\x80\x3f"}};
+          {"screenWindowWidth", "float", std::string("\0\0\x80\x3f", 4)}};
 }
 
 TEST(DeclaredSizes, HostileExrHeadersAreRefusedBeforeAllocating) {
@@ -298,6 +298,16 @@ TEST(DeclaredSizes, HostileExrHeadersAreRefusedBeforeAllocating) {
     bytes.insert(8, std::string("owner") + '\0' + "string" + '\0' +
                         Le32(0x7fffffff) + "x");
     expect("attribute.exr", bytes, "truncated EXR header");
+  }
+  // 6b. A fixed-size value declaring another size (a fuzzed chunkCount of 10
+  // bytes: OpenEXR and this parser would read the rest of the header
+  // differently, and OpenEXR allocated a huge table from it).
+  {
+    std::vector<ExrAttribute> h = Header(8, 8, 0);
+    h.push_back({"chunkCount", "int", Le32(8) + std::string(6, '\0')});
+    expect("fixed.exr", ExrFile(h, 4096),
+           "EXR attribute 'chunkCount' of type int declares 10 bytes (the "
+           "type has 4)");
   }
   // 7. A header longer than 1 MiB.
   {
