@@ -34,11 +34,11 @@ DeviceSpec ParseDevice(const std::string& text) {
   return d;
 }
 
-ComputeDtype ParseDtype(const std::string& text) {
+ComputeDtype ParseDtype(const std::string& text, const std::string& option) {
   if (text == "fp32" || text == "float32") return ComputeDtype::kFloat32;
   if (text == "bf16" || text == "bfloat16") return ComputeDtype::kBFloat16;
   if (text == "fp16" || text == "float16") return ComputeDtype::kFloat16;
-  ThrowInputError("--dtype", "'", text,
+  ThrowInputError(option, "'", text,
                   "' is not a dtype (expected fp32, bf16 or fp16)");
 }
 

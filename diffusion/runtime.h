@@ -31,7 +31,8 @@ enum class ComputeDtype { kFloat32, kBFloat16, kFloat16 };
 // Throws InputError naming the option otherwise.
 DeviceSpec ParseDevice(const std::string& text);
 // "fp32" | "bf16" | "fp16" (also "float32", "bfloat16", "float16").
-ComputeDtype ParseDtype(const std::string& text);
+ComputeDtype ParseDtype(const std::string& text,
+                        const std::string& option = "--dtype");
 // "fp32", "bf16" or "fp16".
 const char* DtypeName(ComputeDtype dtype);
 // Bytes per element: 4 or 2.

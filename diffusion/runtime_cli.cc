@@ -7,7 +7,7 @@ RuntimeOptions RuntimeArgs::Parse() const {
   RuntimeOptions r;
   r.device = ParseDevice(device);
   r.dtype = ParseDtype(dtype);
-  r.vae_dtype = ParseDtype(vae_dtype);
+  r.vae_dtype = ParseDtype(vae_dtype, "--vae-dtype");
   r.offload_backbone = offload_backbone;
   r.Check();
   return r;

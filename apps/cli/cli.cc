@@ -43,7 +43,38 @@ std::string CommandReferenceMarkdown(const CLI::App& app) {
   return os.str();
 }
 
+constexpr char kOutOfMemoryLine[] =
+    "out of memory (the job needs more memory than this process may use: "
+    "try a smaller --size, fewer frames or fewer --threads)";
+
 }  // namespace
+
+// The first non-empty line of `text`, trimmed, at most 400 bytes.
+std::string FirstLineOf(const std::string& text) {
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(start, end - start);
+    const size_t a = line.find_first_not_of(" \t\r");
+    if (a != std::string::npos) {
+      line = line.substr(a, line.find_last_not_of(" \t\r") - a + 1);
+      return line.size() > 400 ? line.substr(0, 400) + "..." : line;
+    }
+    start = end + 1;
+  }
+  return "(no message)";
+}
+
+// OpenCV ("Insufficient memory", "Failed to allocate"), LibTorch
+// ("DefaultCPUAllocator: can't allocate memory", "CUDA out of memory").
+bool IsOutOfMemoryMessage(const std::string& text) {
+  for (const char* s : {"Insufficient memory", "Failed to allocate",
+                        "can't allocate memory", "out of memory"}) {
+    if (text.find(s) != std::string::npos) return true;
+  }
+  return false;
+}
 
 int RunCommandLine(const CliProgram& program, int argc, char** argv) {
   CLI::App app{program.description, program.name};
@@ -100,14 +131,20 @@ int RunCommandLine(const CliProgram& program, int argc, char** argv) {
       std::cerr << who << ": error: " << e.what() << std::endl;
       return kExitBadInput;
     } catch (const std::bad_alloc&) {
-      std::cerr << who
-                << ": error: out of memory (the job needs more memory than "
-                   "this process may use: try a smaller --size, fewer "
-                   "frames or fewer --threads)"
-                << std::endl;
+      std::cerr << who << ": error: " << kOutOfMemoryLine << std::endl;
       return kExitInternal;
     } catch (const std::exception& e) {
-      std::cerr << who << ": internal error: " << e.what() << std::endl;
+      // Library exceptions (LibTorch's c10::Error with its backtrace,
+      // OpenCV's cv::Exception, libstdc++'s) print one line: their first.
+      // An allocation failure a library reports in its own words is the
+      // out-of-memory line.
+      const std::string line = FirstLineOf(e.what());
+      if (IsOutOfMemoryMessage(e.what())) {
+        std::cerr << who << ": error: " << kOutOfMemoryLine << " [" << line
+                  << "]" << std::endl;
+      } else {
+        std::cerr << who << ": internal error: " << line << std::endl;
+      }
       return kExitInternal;
     }
   }

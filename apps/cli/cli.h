@@ -73,6 +73,17 @@ struct CliProgram {
 // --help` prints it (docs/reference/<name>.md is this output).
 int RunCommandLine(const CliProgram& program, int argc, char** argv);
 
+// The error ladder's one line for a library exception: the first non-empty
+// line of its message, trimmed, at most 400 bytes (LibTorch appends a
+// backtrace, OpenCV starts with an empty line).
+std::string FirstLineOf(const std::string& text);
+
+// True for the allocation failures libraries report in their own words
+// (OpenCV's "Insufficient memory" / "Failed to allocate", LibTorch's "can't
+// allocate memory", "out of memory"): the ladder prints the out-of-memory
+// line for them.
+bool IsOutOfMemoryMessage(const std::string& text);
+
 // The hidden flag that prints the command reference (see RunCommandLine).
 constexpr char kHelpMarkdownFlag[] = "--help-markdown";
 

@@ -1,10 +1,13 @@
 // End-to-end tests of the `geodrive` binary's command-line contract (help,
 // version, exit codes).
 
+#include "apps/cli/cli.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <fstream>
+#include <opencv2/core.hpp>
 
 #include "tests/common/test_util.h"
 
@@ -13,6 +16,34 @@ namespace {
 
 using test::GeodriveBinary;
 using test::RunCommand;
+
+// Library exceptions reach the user as one line: LibTorch's message without
+// its backtrace, OpenCV's without its leading blank line; allocation failures
+// in a library's own words are the out-of-memory line.
+TEST(Cli, LibraryExceptionsAreOneLine) {
+  const std::string torch_error =
+      "The size of tensor a (3) must match the size of tensor b (4) at non-"
+      "singleton dimension 1\nException raised from infer_size_impl at "
+      "../aten/src/ATen/ExpandUtils.cpp:35 (most recent call first):\nframe "
+      "#0: c10::Error::Error(...) + 0x6b (0x7f in libc10.so)\n";
+  EXPECT_EQ(FirstLineOf(torch_error),
+            "The size of tensor a (3) must match the size of tensor b (4) at "
+            "non-singleton dimension 1");
+  EXPECT_FALSE(IsOutOfMemoryMessage(torch_error));
+  const cv::Exception cv_oom(cv::Error::StsNoMem,
+                             "Failed to allocate 4900000000 bytes",
+                             "OutOfMemoryError", "alloc.cpp", 73);
+  EXPECT_TRUE(IsOutOfMemoryMessage(cv_oom.what()));
+  EXPECT_EQ(FirstLineOf(cv_oom.what()).find('\n'), std::string::npos);
+  EXPECT_NE(FirstLineOf(cv_oom.what()).find("Failed to allocate"),
+            std::string::npos);
+  EXPECT_TRUE(IsOutOfMemoryMessage(
+      "[enforce fail at alloc_cpu.cpp:75] err == 0. DefaultCPUAllocator: "
+      "can't allocate memory: you tried to allocate 10737418240 bytes."));
+  EXPECT_EQ(FirstLineOf("\n\n  padded  \n"), "padded");
+  EXPECT_EQ(FirstLineOf(""), "(no message)");
+  EXPECT_EQ(FirstLineOf(std::string(1000, 'x')).size(), 403u);
+}
 
 TEST(Cli, HelpListsSubcommands) {
   std::string out;

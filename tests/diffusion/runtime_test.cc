@@ -249,7 +249,21 @@ TEST(DiffusionRuntime, SampleInBf16GivesFloat32LatentsNearFp32) {
             &bad),
         2)
         << extra << ": " << bad;
-    EXPECT_NE(bad.find(std::string(extra).substr(0, 6)), std::string::npos)
+    // The option named is the one given (--vae-dtype, not --dtype).
+    const std::string option(extra, std::string(extra).find(' '));
+    EXPECT_NE(bad.find(option + ":"), std::string::npos) << bad;
+  }
+  // --vae-dtype is named as itself (vae-decode has it, sample does not).
+  {
+    std::string bad;
+    EXPECT_EQ(
+        test::RunCommand(test::DiffusionCommand() + " vae-decode --latents " +
+                             dir + "/image.safetensors --out-tensor " + dir +
+                             "/v.safetensors --vae-dtype bf17",
+                         &bad),
+        2)
+        << bad;
+    EXPECT_NE(bad.find("--vae-dtype: 'bf17' is not a dtype"), std::string::npos)
         << bad;
   }
   if (!GetRuntimeInfo().cuda_available) {
