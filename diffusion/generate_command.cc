@@ -49,7 +49,9 @@
 #include "geometry/point_cloud.h"
 #include "geometry/trajectory.h"
 #include "geometry/trajectory_json.h"
+#include "geometry/util/files.h"
 #include "geometry/util/output_file.h"
+#include "geometry/util/progress.h"
 #include "geometry/util/status.h"
 #include "render/dynamic_edit.h"
 #include "render/presets.h"
@@ -130,7 +132,19 @@ Model LoadModel(const GenerateArgs& a) {
   m.H = m.dit.latent_height * m.vc.spatial_compression;
   m.W = m.dit.latent_width * m.vc.spatial_compression;
   GEODRIVE_CHECK_INPUT(!a.weights.empty(), "--weights is required");
-  GEODRIVE_CHECK_INPUT(a.fps > 0, "--fps must be positive");
+  GEODRIVE_CHECK_INPUT(std::isfinite(a.fps) && a.fps > 0 && a.fps <= 1000,
+                       "--fps must be in (0, 1000]");
+  GEODRIVE_CHECK_INPUT(std::isfinite(a.conditioning_scale),
+                       "--conditioning-scale must be finite");
+  // The sampler's options are checked here, before any rendering or
+  // encoding (the sampler checks them again when it runs).
+  SampleOptions probe;
+  probe.weights = a.weights;
+  probe.latents = probe.cond_latents = probe.out = "(written later)";
+  probe.scheduler = a.scheduler;
+  probe.steps = a.steps;
+  probe.guidance = a.guidance;
+  probe.Check();
   m.runtime = a.runtime.Parse();
   m.attention = a.runtime.Attention();
   return m;
@@ -275,7 +289,13 @@ int RunGenerateManifest(const GenerateArgs& a) {
       "--boxes or --out");
   GEODRIVE_CHECK_INPUT(!a.out_dir.empty(), "--manifest needs --out-dir");
   GEODRIVE_CHECK_INPUT(a.limit >= 0, "--limit must be >= 0");
+  GEODRIVE_CHECK_INPUT(a.frames >= 0, "--frames must be >= 0");
+  // Every option and both output folders are checked before any work.
   const Model m = LoadModel(a);
+  const fs::path out_dir(a.out_dir);
+  const fs::path work_root(a.out_dir + "_work");
+  CreateOutputDirectory(out_dir.string());
+  CreateOutputDirectory(work_root.string());
   const std::vector<ManifestEntry> entries = ReadManifest(a.manifest);
   GEODRIVE_CHECK_INPUT(!entries.empty(), a.manifest, ": no pairs");
   const fs::path manifest_path(a.manifest);
@@ -283,31 +303,56 @@ int RunGenerateManifest(const GenerateArgs& a) {
                                     ? manifest_path.parent_path().string()
                                     : std::string(".");
   const Weights vae = LoadVae(a, m);
-  const fs::path out_dir(a.out_dir);
-  const fs::path work_root(a.out_dir + "_work");
-  int done = 0;
+  // The builder's batch contract: a bad pair is recorded in
+  // <out-dir>/failures.jsonl (clip, stage, error), the rest are generated,
+  // and the run exits 3 when any failed.
+  const std::string failures_path = (out_dir / "failures.jsonl").string();
+  WriteFileAtomic(failures_path, "");
+  JsonlAppender failures(failures_path);
+  int done = 0, failed = 0;
   for (const ManifestEntry& e : entries) {
-    if (a.limit > 0 && done >= a.limit) break;
-    const PairRecord rec = ReadPair(build_dir, e);
-    const std::vector<cv::Mat> gt = ReadVideoFrames(rec.gt_video);
-    const std::vector<cv::Mat> cond = ReadVideoFrames(rec.cond_video);
-    const int avail = static_cast<int>(cond.size());
-    const int frames =
-        a.frames > 0 ? a.frames : std::min(m.model_frames, avail);
-    GEODRIVE_CHECK_INPUT(
-        frames >= 1 && frames <= m.model_frames && frames <= avail,
-        rec.cond_video, ": ", avail, " condition frames; --frames ", frames,
-        " must be in [1, min(", m.model_frames, ", ", avail, ")]");
-    std::cout << GenerateVideo(a, m, vae, gt[0], cond, frames,
-                               (out_dir / (e.clip_id + ".mp4")).string(),
-                               (work_root / e.clip_id / "preview.png").string(),
-                               work_root / e.clip_id)
-              << std::endl;
-    ++done;
+    if (a.limit > 0 && done + failed >= a.limit) break;
+    if (StopRequested()) break;
+    std::string stage = "read pair";
+    try {
+      const PairRecord rec = ReadPair(build_dir, e);
+      const std::vector<cv::Mat> gt = ReadVideoFrames(rec.gt_video);
+      const std::vector<cv::Mat> cond = ReadVideoFrames(rec.cond_video);
+      GEODRIVE_CHECK_INPUT(!gt.empty(), rec.gt_video, ": no frames");
+      const int avail = static_cast<int>(cond.size());
+      const int frames =
+          a.frames > 0 ? a.frames : std::min(m.model_frames, avail);
+      GEODRIVE_CHECK_INPUT(
+          frames >= 1 && frames <= m.model_frames && frames <= avail,
+          rec.cond_video, ": ", avail, " condition frames; --frames ", frames,
+          " must be in [1, min(", m.model_frames, ", ", avail, ")]");
+      stage = "generate";
+      std::cout << GenerateVideo(
+                       a, m, vae, gt[0], cond, frames,
+                       (out_dir / (e.clip_id + ".mp4")).string(),
+                       (work_root / e.clip_id / "preview.png").string(),
+                       work_root / e.clip_id)
+                << std::endl;
+      ++done;
+    } catch (const std::bad_alloc&) {
+      throw;  // out of memory: the whole run stops (the ladder's line)
+    } catch (const std::exception& e_what) {
+      ++failed;
+      FailureEntry f;
+      f.clip_id = e.clip_id;
+      f.stage = stage;
+      f.error = FirstLineOf(e_what.what());
+      failures.Append(FailureEntryToJson(f));
+      std::cerr << "generate: " << e.clip_id << " failed (" << stage
+                << "): " << f.error << std::endl;
+    }
   }
-  std::cout << a.out_dir << ": " << done << " video(s) from " << a.manifest
-            << std::endl;
-  return 0;
+  std::cout << a.out_dir << ": " << done << " video(s) from " << a.manifest;
+  if (failed > 0)
+    std::cout << ", " << failed << " failed (" << failures_path << ")";
+  std::cout << std::endl;
+  if (StopRequested()) return kExitInterrupted;
+  return failed > 0 ? kExitCompletedWithFailures : kExitOk;
 }
 
 int RunGenerate(const GenerateArgs& a) {

@@ -191,7 +191,7 @@ TEST(DiffusionGenerate, ManifestBatchWritesOneVideoPerPair) {
   SceneImageAndDepth(&rgb, &depth);
   fs::create_directories(dir + "/build");
   std::ofstream manifest(dir + "/build/manifest.jsonl");
-  for (const std::string clip : {"clip-a", "clip-b"}) {
+  for (const std::string clip : {"clip-a", "clip-bad", "clip-b"}) {
     const std::string pdir = dir + "/build/pairs/" + clip;
     fs::create_directories(pdir);
     std::vector<cv::Mat> gt, cond;
@@ -224,18 +224,38 @@ TEST(DiffusionGenerate, ManifestBatchWritesOneVideoPerPair) {
     e.scene_name = meta.scene_name;
     e.num_frames = 11;
     manifest << ManifestEntryToJson(e) << "\n";
+    if (clip == "clip-bad") fs::remove(pdir + "/cond.mp4");
   }
   manifest.close();
   const std::string w = TinyWeights(dir);
   std::string out;
+  // Options are checked before any pair is read or rendered: nothing is
+  // created for a bad --steps, --guidance or --fps.
+  for (const char* bad : {"--steps 0", "--guidance nan", "--fps 0"}) {
+    EXPECT_EQ(
+        test::RunCommand(test::DiffusionCommand() + " generate --manifest " +
+                             dir + "/build/manifest.jsonl --out-dir " + dir +
+                             "/early --weights " + w + " " + bad,
+                         &out),
+        2)
+        << bad << ": " << out;
+    EXPECT_FALSE(fs::exists(dir + "/early")) << bad;
+  }
+  // A bad pair is recorded and skipped; the others are generated; exit 3.
   ASSERT_EQ(
       test::RunCommand(test::DiffusionCommand() + " generate --manifest " +
                            dir + "/build/manifest.jsonl --out-dir " + dir +
                            "/pred --weights " + w + " --steps 1 --no-progress",
                        &out),
-      0)
+      3)
       << out;
   std::cout << out;
+  const std::vector<FailureEntry> failed =
+      ReadFailures(dir + "/pred/failures.jsonl");
+  ASSERT_EQ(failed.size(), 1u);
+  EXPECT_EQ(failed[0].clip_id, "clip-bad");
+  EXPECT_NE(failed[0].error.find("cond.mp4: missing"), std::string::npos)
+      << failed[0].error;
   const std::vector<VideoSource> pred = ListVideos(dir + "/pred", "");
   ASSERT_EQ(pred.size(), 2u);
   EXPECT_EQ(pred[0].id, "clip-a");
