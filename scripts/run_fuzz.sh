@@ -11,7 +11,7 @@
 #   FUZZ_CLOCK     wall (default): SECONDS of wall time per target (libFuzzer's -max_total_time);
 #                  cpu: SECONDS of CPU time of the fuzzer process, measured from /proc and
 #                  ended with SIGINT (libFuzzer then prints its final stats) -- for long runs
-#                  that share the machine with other work (issue 19: "1 CPU-hour")
+#                  that share the machine with other work (a "one CPU-hour" run)
 #   FUZZ_MAX_RUNS  stop earlier after this many executions (libFuzzer's -runs; 10000000 for the
 #                  long runs of docs/RELIABILITY.md)
 #   FUZZ_TIMEOUT   seconds one input may take before it is a hang finding (default 10)
@@ -54,7 +54,7 @@ run_target() {
   dict=()
   [[ -f fuzz/dict/$t.dict ]] && dict=(-dict="fuzz/dict/$t.dict")
   # -malloc_limit_mb: a reader that allocates more than this for an input of at most
-  # max_len bytes has trusted a declared size (issue 19): a finding.
+  # max_len bytes has trusted a declared size: a finding.
   "$bin" "$dir/corpus" "${limits[@]}" "${dict[@]}" -rss_limit_mb=2560 \
     -malloc_limit_mb=1024 -max_len=65536 -print_final_stats=1 \
     -artifact_prefix="$dir/findings/" >"$log" 2>&1 &
@@ -86,7 +86,7 @@ run_target() {
   if [[ $result != ok ]]; then
     grep -m 5 -E 'ERROR|SUMMARY|==[0-9]+==|deadly|uncaught|Test unit written' "$log" | sed 's/^/  /' || true
     # libFuzzer's per-input timeout is wall time: a run that was stopped (SIGSTOP, a suspended
-    # VM) reports a timeout for whatever input it was on. Replay each timeout once to tell.
+    # virtual machine) reports a timeout for whatever input it was on. Replay each timeout once to tell.
     for unit in "$dir"/findings/timeout-*; do
       [[ -e "$unit" ]] || continue
       if timeout "${FUZZ_TIMEOUT:-10}" "$bin" "$unit" >/dev/null 2>&1; then

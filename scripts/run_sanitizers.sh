@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The sanitizer and fuzzing job (issue 19, docs/RELIABILITY.md): builds everything except the
+# The sanitizer and fuzzing job (docs/RELIABILITY.md): builds everything except the
 # LibTorch runtime with clang-14 under AddressSanitizer + UndefinedBehaviorSanitizer (every report
 # fatal; object-size left to ASan) in ./build-asan, the fuzzed readers' libraries also with
 # libFuzzer coverage instrumentation, runs the whole non-LibTorch test suite there, then every

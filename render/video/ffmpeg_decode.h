@@ -4,7 +4,7 @@
 //
 // Why not cv::VideoCapture: OpenCV's videoio links ~245 shared libraries
 // (GDAL among them) and costs every process that links it 160-210 ms of
-// start-up (issue 23), for a few dozen lines of FFmpeg calls we already link
+// start-up, for a few dozen lines of FFmpeg calls we already link
 // for the H.264 writer. The pixels are those cv::VideoCapture(CAP_FFMPEG)
 // returns for the same file (same FFmpeg, same conversion: swscale at the
 // coded size, SWS_BICUBIC, the default BT.601 coefficients, into a 32-byte

@@ -6,7 +6,7 @@
 // WriteVideoFrames' .mp4 ('mp4v') and .avi ('MJPG').
 //
 // Why not cv::VideoWriter: OpenCV's videoio links ~245 shared libraries and
-// costs every process 160-210 ms of start-up (issue 23). The FourCC is looked
+// costs every process 160-210 ms of start-up. The FourCC is looked
 // up in the container's codec tags as OpenCV does, but the settings are ours:
 // a fixed quantiser (q = 2, near the best an MPEG-4 or MJPEG encoder gives)
 // instead of OpenCV's 1 bit per pixel, one thread, bit-exact flags on codec,

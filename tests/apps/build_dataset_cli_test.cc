@@ -209,7 +209,7 @@ TEST(BuildDatasetCli, BadArgumentsExitTwoWithOneLine) {
   EXPECT_NE(log.find("/nonexistent"), std::string::npos) << log;
 }
 
-// The bridges to the tools users run (issue 18): `geodrive clips` says which
+// The bridges to the tools users run: `geodrive clips` says which
 // frames make each clip; MonST3R folders stored under GeoDrive's upstream
 // naming (sample_%06d/reconstruction/, numbered by clips.jsonl) are found
 // through --monst3r-map and give the same pairs as <clip_id>/ folders; and
@@ -325,7 +325,7 @@ TEST(RefinePosesCli, RefusesToWriteIntoItsInputFolder) {
   EXPECT_EQ(test::ReadFile(dir + "/pred_traj.txt"), before);
 }
 
-// Issue 19: `fuse --out` inside the MonST3R folder is refused the same way (a
+// `fuse --out` inside the MonST3R folder is refused the same way (a
 // cloud named like an input there would overwrite it or mix with its files).
 TEST(FuseCli, RefusesToWriteIntoItsInputFolder) {
   const std::string dir = test::MakeTempDir("cli_fuse_inplace");

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 23 (start-up): `geodrive` loads no heavy library at start-up. Fails when
+# Start-up: `geodrive` loads no heavy library at start-up. Fails when
 #  - the executable links (directly or not, `ldd`) LibTorch, VTK, GDAL, OpenCV's imgcodecs or
 #    videoio, FFmpeg, PCL or Ceres: those belong to the commands plugin;
 #  - the commands plugin links LibTorch, VTK, GDAL, OpenCV's imgcodecs or videoio (LibTorch is

@@ -65,8 +65,8 @@ TEST(Cli, UnknownSubcommandExitsTwoWithOneLine) {
 
 TEST(Cli, NoSubcommandExitsTwo) { EXPECT_EQ(RunCommand(GeodriveBinary()), 2); }
 
-// Issue 19: `refine-poses --threads 100000` segfaulted and `--threads 1000`
-// printed a raw libgomp error; every --threads is now checked where parsed.
+// Every --threads is checked where parsed: `--threads 100000` would make
+// libgomp fail (or crash) with a raw message of its own.
 TEST(Cli, ThreadCountsAreCheckedWhereParsed) {
   for (const std::string& args :
        {std::string("refine-poses --monst3r /nonexistent --out /tmp/x.txt "
@@ -87,9 +87,9 @@ TEST(Cli, ThreadCountsAreCheckedWhereParsed) {
   }
 }
 
-// Issue 19: an output folder that cannot be created was "internal error"
-// (exit 1), and `eval` found out only after computing every metric. Here the
-// folder would have to be created under a regular file.
+// An output folder that cannot be created is bad input (exit 2), found
+// before any metric is computed. Here the folder would have to be created
+// under a regular file.
 TEST(Cli, UnusableOutputFolderIsBadInputFoundFirst) {
   const std::string file = test::MakeTempDir("cli_out") + "/a_file";
   std::ofstream(file) << "x";

@@ -1,4 +1,4 @@
-// Issue 19: the CLI under an address-space limit (`ulimit -v`) on inputs that
+// The CLI under an address-space limit (`ulimit -v`) on inputs that
 // declare absurd sizes. Each must end in one clear line and exit 2 (or succeed
 // where the work itself is bounded), never die on std::bad_alloc or a signal.
 // Before the fixes: a PLY declaring 50 M vertices in 80 KB allocated 880 MB,
