@@ -23,7 +23,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace declared_sizes_memory_test {
 
 constexpr long kBoundKb = 200 * 1024;
 
@@ -195,5 +197,5 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
   }
 }
 
-}  // namespace
+}  // namespace declared_sizes_memory_test
 }  // namespace geodrive

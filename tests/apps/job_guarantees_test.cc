@@ -20,7 +20,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace job_guarantees_test {
 
 namespace fs = std::filesystem;
 using test::GeodriveBinary;
@@ -303,5 +305,5 @@ TEST(JobGuarantees, SecondSigtermExitsAt130WithoutTemporaries) {
       << log;
 }
 
-}  // namespace
+}  // namespace job_guarantees_test
 }  // namespace geodrive

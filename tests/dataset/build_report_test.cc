@@ -14,7 +14,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace build_report_test {
 
 namespace fs = std::filesystem;
 
@@ -190,5 +192,5 @@ TEST(BuildReport, AnEmptyOutputStillGivesAPage) {
   EXPECT_NE(html.find("No clip failed."), std::string::npos);
 }
 
-}  // namespace
+}  // namespace build_report_test
 }  // namespace geodrive

@@ -30,7 +30,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace json_depth_test {
 
 namespace nj = nuscenes_json;
 
@@ -321,5 +323,5 @@ TEST(JsonDepth, SafetensorsHeaderParsesInLinearTime) {
   EXPECT_LT(t100k, 15.0);
 }
 
-}  // namespace
+}  // namespace json_depth_test
 }  // namespace geodrive

@@ -22,7 +22,9 @@ namespace diffusion {
 
 std::string DiffusionPairsFixture();  // tests/diffusion/pairs_loader_test.cc
 
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace output_guard_test {
 
 namespace fs = std::filesystem;
 using test::DiffusionCommand;
@@ -148,6 +150,6 @@ TEST(OutputGuard, TrainSigtermExits130WithoutTemporaries) {
   }
 }
 
-}  // namespace
+}  // namespace output_guard_test
 }  // namespace diffusion
 }  // namespace geodrive

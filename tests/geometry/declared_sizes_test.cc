@@ -21,7 +21,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace declared_sizes_test {
 
 using ::testing::HasSubstr;
 
@@ -331,5 +333,5 @@ TEST(DeclaredSizes, HostileExrHeadersAreRefusedBeforeAllocating) {
   }
 }
 
-}  // namespace
+}  // namespace declared_sizes_test
 }  // namespace geodrive

@@ -38,7 +38,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace input_file_test {
 
 namespace fs = std::filesystem;
 
@@ -228,5 +230,5 @@ TEST(InputFile, ReleasedDescriptorStaysOpen) {
   ::close(fd);
 }
 
-}  // namespace
+}  // namespace input_file_test
 }  // namespace geodrive

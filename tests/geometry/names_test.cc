@@ -13,7 +13,9 @@
 #include "geometry/util/status.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace names_test {
 
 // What a result may hold: the kept bytes, '%' of an escape, '~' of a hash.
 bool SafeBytes(const std::string& s) {
@@ -139,5 +141,5 @@ TEST(CheckPathInside, GuardsTheOutputFolder) {
   EXPECT_THROW(CheckPathInside("out2/x", "out"), InputError);
 }
 
-}  // namespace
+}  // namespace names_test
 }  // namespace geodrive

@@ -14,7 +14,9 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
-namespace {
+// A named namespace, not an anonymous one: the unity build compiles this
+// file with others of its folder, whose anonymous helpers share names.
+namespace video_sizes_test {
 
 using ::testing::HasSubstr;
 
@@ -113,5 +115,5 @@ TEST(VideoSizes, DeclaredFrameCountsAndSizesAreCheckedBeforeDecoding) {
   EXPECT_EQ(stream.frames_read(), 3);
 }
 
-}  // namespace
+}  // namespace video_sizes_test
 }  // namespace geodrive
