@@ -27,6 +27,7 @@
 #include "dataset/scene_source.h"
 #include "geometry/util/files.h"
 #include "geometry/util/hash.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/names.h"
 #include "geometry/util/output_file.h"
 #include "geometry/util/progress.h"
@@ -414,7 +415,7 @@ std::optional<RunRecord> ReadRunRecord(const std::string& out) {
   if (!fs::exists(path, ec)) return std::nullopt;
   RunRecord run;
   try {
-    const json j = json::parse(ReadFileText(path, 1ull << 30));
+    const json j = internal::ParseJson(ReadFileText(path, 1ull << 30), path);
     for (const auto& c : j.at("clips")) run.clips.insert(c.get<std::string>());
     run.options_hash = j.at("options_hash").get<std::string>();
     run.inputs = j.at("inputs").dump();
