@@ -236,7 +236,8 @@ void SaveSafetensors(const std::string& path,
   }
   std::string text = header.dump();
   while ((8 + text.size()) % 8 != 0) text.push_back(' ');
-  const std::string tmp = path + ".tmp";
+  // A unique temporary beside the file, removed on SIGINT/SIGTERM.
+  const std::string tmp = TemporaryPathFor(path, ".safetensors");
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) ThrowInputError(path, "cannot open for writing");
