@@ -137,9 +137,14 @@ void CheckExrHeader(const std::string& path) {
         part.has_window = true;
         part.width = int64_t{ReadI32(v + 8)} - ReadI32(v) + 1;
         part.height = int64_t{ReadI32(v + 12)} - ReadI32(v + 4) + 1;
-      } else if (name == "channels" && type == "chlist") {
-        // Per channel: name, pixel type, pLinear + 3 reserved, x/y sampling.
+      } else if (type == "chlist") {
+        // Per channel: name, pixel type, pLinear + 3 reserved, x/y sampling;
+        // an empty name ends the list. OpenEXR reads the list by this
+        // structure, not by `size`: the two must agree, or OpenEXR would go
+        // on reading the rest of the header from another place than this
+        // check (a fuzzed list made it allocate 1.6 GB for a later value).
         size_t c = 0;
+        int bytes_per_pixel = 0;
         while (c < static_cast<size_t>(size) && v[c] != 0) {
           const void* end = std::memchr(v + c, 0, size - c);
           GEODRIVE_CHECK_INPUT(end != nullptr, path,
@@ -147,9 +152,23 @@ void CheckExrHeader(const std::string& path) {
           c = static_cast<const uint8_t*>(end) - v + 1;
           GEODRIVE_CHECK_INPUT(c + 16 <= static_cast<size_t>(size), path,
                                ": malformed EXR channel list");
-          part.bytes_per_pixel += ReadI32(v + c) == 1 ? 2 : 4;
+          bytes_per_pixel += ReadI32(v + c) == 1 ? 2 : 4;
           c += 16;
         }
+        GEODRIVE_CHECK_INPUT(c + 1 == static_cast<size_t>(size), path,
+                             ": EXR channel list '", name, "' declares ", size,
+                             " bytes but its channels end at byte ", c + 1);
+        if (name == "channels") part.bytes_per_pixel += bytes_per_pixel;
+      } else if (type == "preview") {
+        // Width and height, then 4 bytes a pixel: OpenEXR allocates from
+        // the two counts, so they must fill `size` exactly.
+        GEODRIVE_CHECK_INPUT(size >= 8, path, ": malformed EXR preview");
+        const uint64_t w = static_cast<uint32_t>(ReadI32(v)),
+                       h = static_cast<uint32_t>(ReadI32(v + 4));
+        GEODRIVE_CHECK_INPUT(w <= (1u << 16) && h <= (1u << 16) &&
+                                 8 + 4 * w * h == static_cast<uint64_t>(size),
+                             path, ": EXR preview of ", w, "x", h, " declares ",
+                             size, " bytes");
       } else if (name == "compression" && type == "compression" && size >= 1) {
         part.compression = v[0];
       } else if (name == "tiles" && type == "tiledesc" && size >= 8) {
