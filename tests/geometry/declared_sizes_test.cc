@@ -311,6 +311,16 @@ TEST(DeclaredSizes, HostileExrHeadersAreRefusedBeforeAllocating) {
            "EXR attribute 'chunkCount' of type int declares 10 bytes (the "
            "type has 4)");
   }
+  // 6c. A channel list declaring more bytes than its channels hold (OpenEXR
+  // reads the list by its structure and would read the rest of the header
+  // from another place than the check).
+  {
+    std::vector<ExrAttribute> h = Header(8, 8, 0);
+    h[0].value += std::string(4, '\0');
+    expect("chlist.exr", ExrFile(h, 4096),
+           "EXR channel list 'channels' declares 23 bytes but its channels end "
+           "at byte 19");
+  }
   // 7. A header longer than 1 MiB.
   {
     std::vector<ExrAttribute> h = Header(8, 8, 0);
