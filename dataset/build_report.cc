@@ -349,338 +349,385 @@ constexpr const char* kScript = R"JS(
 })();
 )JS";
 
-}  // namespace
+// The report's sections, in page order, over the build's manifest, failures
+// and pair metas (Collect). Members keep the names the sections use.
+class ReportWriter {
+ public:
+  ReportWriter(const std::string& out, const BuildDatasetSummary* summary)
+      : out(out), summary(summary) {}
 
-void WriteBuildReport(const std::string& out,
-                      const BuildDatasetSummary* summary) {
-  std::vector<ManifestEntry> entries;
-  if (fs::exists(out + "/manifest.jsonl"))
-    entries = ReadManifest(out + "/manifest.jsonl");
-  std::vector<FailureEntry> fails;
-  if (fs::exists(out + "/failures.jsonl"))
-    fails = ReadFailures(out + "/failures.jsonl");
+  std::string Write() {
+    Collect();
+    Header();
+    Counts();
+    Quality();
+    Pairs();
+    Failures();
+    Videos();
+    TimePerStage();
+    os << "<script>" << kScript << "</script></body></html>\n";
+    return os.str();
+  }
 
+ private:
   // Per pair: meta.json figures; over pairs: the histograms' values.
-  std::vector<PairRow> rows;
-  std::vector<double> coverage, scales, psnr;
-  std::map<std::string, std::vector<double>> coverage0_by_source;
-  std::string completion_url, completion_clip;
-  for (const auto& e : entries) {
-    PairRow r;
-    r.entry = e;
-    coverage.push_back(e.mean_coverage);
-    try {
-      r.meta = ReadPairMeta(out + "/" + e.pair_dir);
-    } catch (const std::exception&) {
-    }
-    if (r.meta) {
-      const PairMeta& m = *r.meta;
-      if (!m.quality.coverage.empty())
-        coverage0_by_source[m.geometry_source].push_back(
-            m.quality.coverage.front());
-      if (completion_url.empty()) {
-        completion_url = PairFileUrl(out, e, m, "completion_preview");
-        if (!completion_url.empty()) completion_clip = e.clip_id;
+  void Collect() {
+    if (fs::exists(out + "/manifest.jsonl"))
+      entries = ReadManifest(out + "/manifest.jsonl");
+    if (fs::exists(out + "/failures.jsonl"))
+      fails = ReadFailures(out + "/failures.jsonl");
+
+    // Per pair: meta.json figures; over pairs: the histograms' values.
+    for (const auto& e : entries) {
+      PairRow r;
+      r.entry = e;
+      coverage.push_back(e.mean_coverage);
+      try {
+        r.meta = ReadPairMeta(out + "/" + e.pair_dir);
+      } catch (const std::exception&) {
       }
-      // The LiDAR-fitted scale of MonST3R geometry; otherwise why none.
-      if (m.scale_source == "lidar") {
-        r.scale = m.scale;
-      } else if (m.pose_units == "monst3r") {
-        r.scale_note = "no metric scale: poses in MonST3R units";
+      if (r.meta) {
+        const PairMeta& m = *r.meta;
+        if (!m.quality.coverage.empty())
+          coverage0_by_source[m.geometry_source].push_back(
+              m.quality.coverage.front());
+        if (completion_url.empty()) {
+          completion_url = PairFileUrl(out, e, m, "completion_preview");
+          if (!completion_url.empty()) completion_clip = e.clip_id;
+        }
+        // The LiDAR-fitted scale of MonST3R geometry; otherwise why none.
+        if (m.scale_source == "lidar") {
+          r.scale = m.scale;
+        } else if (m.pose_units == "monst3r") {
+          r.scale_note = "no metric scale: poses in MonST3R units";
+        } else {
+          r.scale_note = "metric geometry (" + m.scale_source + ")";
+        }
+        if (m.scale_source == "lidar") scales.push_back(m.scale);
+        double sum = 0;
+        int n = 0;
+        for (const auto& p : m.quality.psnr_static) {
+          if (!p || !std::isfinite(*p)) continue;
+          psnr.push_back(*p);
+          sum += *p;
+          ++n;
+        }
+        if (n) r.psnr_mean = sum / n;
+        if (m.intrinsics.width > 0 && m.intrinsics.height > 0) {
+          r.video_ratio = std::to_string(m.intrinsics.width) + "/" +
+                          std::to_string(m.intrinsics.height);
+        }
+        r.gt = PairFileUrl(out, e, m, "gt");
+        r.cond = PairFileUrl(out, e, m, "cond");
+        r.preview = PairFileUrl(out, e, m, "preview");
+        r.first_frame = PairFileUrl(out, e, m, "first_frame");
+      }
+      rows.push_back(std::move(r));
+    }
+  }
+
+  // The page head, the output folder and the section links.
+  void Header() {
+    has_time = summary && !summary->seconds_by_stage.empty();
+    os << "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+          "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+          "<link rel='icon' href='data:,'>"
+          "<title>geodrive build-dataset report</title><style>"
+       << kStyle << "</style></head><body>\n";
+    os << "<header><h1>Dataset build report</h1><p class='muted'>Output "
+          "<code>"
+       << Html(fs::absolute(out).lexically_normal().string())
+       << "</code> &middot; geodrive " << Html(GEODRIVE_VERSION)
+       << "</p><nav><a href='#counts'>counts</a> <a "
+          "href='#quality'>quality</a> "
+          "<a href='#pairs'>pairs</a> <a href='#failures'>failures ("
+       << fails.size() << ")</a> <a href='#videos'>videos</a>"
+       << (has_time ? " <a href='#time'>time per stage</a>" : "")
+       << "</nav></header>\n";
+  }
+
+  void Counts() {
+    // Counts.
+    auto stat = [this](const std::string& id, const std::string& name,
+                       const std::string& value, bool bad = false) {
+      os << "<div" << (bad ? " class='bad'" : "") << "><dt>" << Html(name)
+         << "</dt><dd id='" << id << "'>" << value << "</dd></div>";
+    };
+    os << "<section id='counts'><h2>Counts</h2><dl class='stats'>";
+    stat("count-pairs", "pairs", std::to_string(entries.size()));
+    stat("count-failed", "failed clips", std::to_string(fails.size()),
+         !fails.empty());
+    if (summary) {
+      stat("count-clips", "clips in this run",
+           std::to_string(summary->clips_total));
+      stat("count-built", "built in this run", std::to_string(summary->built));
+      stat("count-skipped", "skipped (already built)",
+           std::to_string(summary->skipped_existing));
+      if (summary->skipped_no_monst3r)
+        stat("count-no-monst3r", "skipped (no MonST3R folder)",
+             std::to_string(summary->skipped_no_monst3r));
+      if (summary->rebuilt_broken)
+        stat("count-rebuilt-broken", "rebuilt (broken)",
+             std::to_string(summary->rebuilt_broken));
+      if (summary->rebuilt_mismatched)
+        stat("count-rebuilt-options", "rebuilt (other options)",
+             std::to_string(summary->rebuilt_mismatched));
+      if (summary->kept_mismatched)
+        stat("count-kept-options", "kept (other options)",
+             std::to_string(summary->kept_mismatched));
+      if (summary->log_write_errors)
+        stat("count-log-errors", "log write errors",
+             std::to_string(summary->log_write_errors), true);
+      stat("run-time", "run time", Html(Seconds(summary->seconds_total)));
+    }
+    os << "</dl>";
+    if (summary && summary->interrupted)
+      os << "<p class='note'>The run was interrupted: rerun to resume.</p>";
+    os << "</section>\n";
+  }
+
+  void Quality() {
+    // Quality.
+    os << "<section id='quality'><h2>Quality</h2>";
+    if (summary && summary->quality.pairs)
+      os << "<p id='quality-brief'>" << Html(summary->quality.BriefReport())
+         << "</p>";
+    os << "<div class='hists'>"
+       << SvgHistogram(coverage, {"Mean condition coverage per pair",
+                                  "fraction of pixels with a condition value",
+                                  "pairs", 0, 1, 20})
+       << SvgHistogram(psnr, {"Static-region PSNR per frame (dB), condition vs "
+                              "ground truth",
+                              "PSNR (dB)", "frames", 5, 45, 20});
+    for (const auto& [source, values] : coverage0_by_source) {
+      os << SvgHistogram(values,
+                         {"frame-0 coverage per pair, --geometry " + source,
+                          "frame-0 coverage", "pairs", 0, 1, 20});
+    }
+    if (!scales.empty()) {
+      const double lo = *std::min_element(scales.begin(), scales.end());
+      const double hi = *std::max_element(scales.begin(), scales.end());
+      os << SvgHistogram(scales, {"LiDAR scale (metres per MonST3R unit)",
+                                  "metres per MonST3R unit", "pairs", lo * 0.9,
+                                  hi * 1.1 + 1e-9, 20});
+    }
+    os << "</div></section>\n";
+
+    if (!completion_url.empty()) {
+      os << "<section id='completion'><h2>Depth completion, before and after ("
+         << Html(completion_clip) << ", frame 0)</h2><figure><img class='wide' "
+         << "src='" << completion_url << "' alt='depth completion of "
+         << Html(completion_clip)
+         << "'><figcaption>The frame-0 image, the LiDAR returns projected into "
+            "it, and the completed depth (colour: inverse depth, 2 m red to "
+            "80 m blue; black: none).</figcaption></figure></section>\n";
+    }
+  }
+
+  void Pairs() {
+    // Pairs and failed clips, one row each.
+    os << "<section id='pairs'><h2>Pairs</h2><p class='muted'>"
+       << entries.size() << " pairs, " << fails.size()
+       << " failed clips. Click a column title to sort; coverage and PSNR are "
+          "means over the clip's frames, PSNR over the static rendered "
+          "pixels.</p><div class='scroll'><table id='pair-table'><thead><tr>"
+          "<th><button type='button'>clip</button></th>"
+          "<th><button type='button'>scene</button></th>"
+          "<th><button type='button'>geometry</button></th>"
+          "<th class='n' data-type='num'><button type='button'>frames</button>"
+          "</th><th class='n' data-type='num' id='sort-coverage'><button "
+          "type='button'>coverage</button></th>"
+          "<th class='n' data-type='num'><button type='button'>PSNR</button>"
+          "</th><th class='n' data-type='num'><button type='button'>scale"
+          "</button></th><th><button type='button'>failure</button></th>"
+          "<th>videos</th></tr></thead><tbody>";
+    int index = 0;
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const PairRow& r = rows[k];
+      const ManifestEntry& e = r.entry;
+      os << "<tr class='pair-row' data-i='" << index++ << "' data-clip='"
+         << Html(e.clip_id) << "'><td><code>" << Html(e.clip_id)
+         << "</code></td><td>" << Html(e.scene_name) << "</td><td>"
+         << Html(e.geometry_source) << "</td><td class='n' data-v='"
+         << e.num_frames << "'>" << e.num_frames
+         << "</td><td class='n' data-v='" << Fixed(e.mean_coverage, 6) << "'>"
+         << Fixed(e.mean_coverage, 3) << "</td>";
+      if (r.psnr_mean) {
+        os << "<td class='n' data-v='" << Fixed(*r.psnr_mean, 3) << "'>"
+           << Fixed(*r.psnr_mean, 1) << " dB</td>";
       } else {
-        r.scale_note = "metric geometry (" + m.scale_source + ")";
+        os << "<td class='n'>—</td>";
       }
-      if (m.scale_source == "lidar") scales.push_back(m.scale);
-      double sum = 0;
-      int n = 0;
-      for (const auto& p : m.quality.psnr_static) {
-        if (!p || !std::isfinite(*p)) continue;
-        psnr.push_back(*p);
-        sum += *p;
-        ++n;
+      if (r.scale) {
+        os << "<td class='n' data-v='" << Short(*r.scale, 6) << "'>"
+           << Fixed(*r.scale, 2) << " m/unit</td>";
+      } else {
+        os << "<td class='n'";
+        if (!r.scale_note.empty())
+          os << " title='" << Html(r.scale_note) << "'";
+        os << ">—</td>";
       }
-      if (n) r.psnr_mean = sum / n;
-      if (m.intrinsics.width > 0 && m.intrinsics.height > 0) {
-        r.video_ratio = std::to_string(m.intrinsics.width) + "/" +
-                        std::to_string(m.intrinsics.height);
+      os << "<td>—</td><td>";
+      if (k < kMaxVideoCards && (!r.gt.empty() || !r.cond.empty())) {
+        os << "<a href='#pair-" << k << "'>watch</a>";
+      } else {
+        bool any = false;
+        for (const auto& [name, url] :
+             {std::pair<std::string, std::string>("gt", r.gt),
+              {"cond", r.cond}}) {
+          if (url.empty()) continue;
+          os << (any ? " &middot; " : "") << "<a href='" << url << "'>" << name
+             << "</a>";
+          any = true;
+        }
+        if (!any) os << "—";
       }
-      r.gt = PairFileUrl(out, e, m, "gt");
-      r.cond = PairFileUrl(out, e, m, "cond");
-      r.preview = PairFileUrl(out, e, m, "preview");
-      r.first_frame = PairFileUrl(out, e, m, "first_frame");
+      os << "</td></tr>";
     }
-    rows.push_back(std::move(r));
-  }
-
-  const bool has_time = summary && !summary->seconds_by_stage.empty();
-  std::ostringstream os;
-  os << "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
-        "<meta name='viewport' content='width=device-width, initial-scale=1'>"
-        "<link rel='icon' href='data:,'>"
-        "<title>geodrive build-dataset report</title><style>"
-     << kStyle << "</style></head><body>\n";
-  os << "<header><h1>Dataset build report</h1><p class='muted'>Output "
-        "<code>"
-     << Html(fs::absolute(out).lexically_normal().string())
-     << "</code> &middot; geodrive " << Html(GEODRIVE_VERSION)
-     << "</p><nav><a href='#counts'>counts</a> <a href='#quality'>quality</a> "
-        "<a href='#pairs'>pairs</a> <a href='#failures'>failures ("
-     << fails.size() << ")</a> <a href='#videos'>videos</a>"
-     << (has_time ? " <a href='#time'>time per stage</a>" : "")
-     << "</nav></header>\n";
-
-  // Counts.
-  auto stat = [&os](const std::string& id, const std::string& name,
-                    const std::string& value, bool bad = false) {
-    os << "<div" << (bad ? " class='bad'" : "") << "><dt>" << Html(name)
-       << "</dt><dd id='" << id << "'>" << value << "</dd></div>";
-  };
-  os << "<section id='counts'><h2>Counts</h2><dl class='stats'>";
-  stat("count-pairs", "pairs", std::to_string(entries.size()));
-  stat("count-failed", "failed clips", std::to_string(fails.size()),
-       !fails.empty());
-  if (summary) {
-    stat("count-clips", "clips in this run",
-         std::to_string(summary->clips_total));
-    stat("count-built", "built in this run", std::to_string(summary->built));
-    stat("count-skipped", "skipped (already built)",
-         std::to_string(summary->skipped_existing));
-    if (summary->skipped_no_monst3r)
-      stat("count-no-monst3r", "skipped (no MonST3R folder)",
-           std::to_string(summary->skipped_no_monst3r));
-    if (summary->rebuilt_broken)
-      stat("count-rebuilt-broken", "rebuilt (broken)",
-           std::to_string(summary->rebuilt_broken));
-    if (summary->rebuilt_mismatched)
-      stat("count-rebuilt-options", "rebuilt (other options)",
-           std::to_string(summary->rebuilt_mismatched));
-    if (summary->kept_mismatched)
-      stat("count-kept-options", "kept (other options)",
-           std::to_string(summary->kept_mismatched));
-    if (summary->log_write_errors)
-      stat("count-log-errors", "log write errors",
-           std::to_string(summary->log_write_errors), true);
-    stat("run-time", "run time", Html(Seconds(summary->seconds_total)));
-  }
-  os << "</dl>";
-  if (summary && summary->interrupted)
-    os << "<p class='note'>The run was interrupted: rerun to resume.</p>";
-  os << "</section>\n";
-
-  // Quality.
-  os << "<section id='quality'><h2>Quality</h2>";
-  if (summary && summary->quality.pairs)
-    os << "<p id='quality-brief'>" << Html(summary->quality.BriefReport())
-       << "</p>";
-  os << "<div class='hists'>"
-     << SvgHistogram(coverage, {"Mean condition coverage per pair",
-                                "fraction of pixels with a condition value",
-                                "pairs", 0, 1, 20})
-     << SvgHistogram(psnr, {"Static-region PSNR per frame (dB), condition vs "
-                            "ground truth",
-                            "PSNR (dB)", "frames", 5, 45, 20});
-  for (const auto& [source, values] : coverage0_by_source) {
-    os << SvgHistogram(values,
-                       {"frame-0 coverage per pair, --geometry " + source,
-                        "frame-0 coverage", "pairs", 0, 1, 20});
-  }
-  if (!scales.empty()) {
-    const double lo = *std::min_element(scales.begin(), scales.end());
-    const double hi = *std::max_element(scales.begin(), scales.end());
-    os << SvgHistogram(scales, {"LiDAR scale (metres per MonST3R unit)",
-                                "metres per MonST3R unit", "pairs", lo * 0.9,
-                                hi * 1.1 + 1e-9, 20});
-  }
-  os << "</div></section>\n";
-
-  if (!completion_url.empty()) {
-    os << "<section id='completion'><h2>Depth completion, before and after ("
-       << Html(completion_clip) << ", frame 0)</h2><figure><img class='wide' "
-       << "src='" << completion_url << "' alt='depth completion of "
-       << Html(completion_clip)
-       << "'><figcaption>The frame-0 image, the LiDAR returns projected into "
-          "it, and the completed depth (colour: inverse depth, 2 m red to "
-          "80 m blue; black: none).</figcaption></figure></section>\n";
-  }
-
-  // Pairs and failed clips, one row each.
-  os << "<section id='pairs'><h2>Pairs</h2><p class='muted'>" << entries.size()
-     << " pairs, " << fails.size()
-     << " failed clips. Click a column title to sort; coverage and PSNR are "
-        "means over the clip's frames, PSNR over the static rendered "
-        "pixels.</p><div class='scroll'><table id='pair-table'><thead><tr>"
-        "<th><button type='button'>clip</button></th>"
-        "<th><button type='button'>scene</button></th>"
-        "<th><button type='button'>geometry</button></th>"
-        "<th class='n' data-type='num'><button type='button'>frames</button>"
-        "</th><th class='n' data-type='num' id='sort-coverage'><button "
-        "type='button'>coverage</button></th>"
-        "<th class='n' data-type='num'><button type='button'>PSNR</button>"
-        "</th><th class='n' data-type='num'><button type='button'>scale"
-        "</button></th><th><button type='button'>failure</button></th>"
-        "<th>videos</th></tr></thead><tbody>";
-  int index = 0;
-  for (size_t k = 0; k < rows.size(); ++k) {
-    const PairRow& r = rows[k];
-    const ManifestEntry& e = r.entry;
-    os << "<tr class='pair-row' data-i='" << index++ << "' data-clip='"
-       << Html(e.clip_id) << "'><td><code>" << Html(e.clip_id)
-       << "</code></td><td>" << Html(e.scene_name) << "</td><td>"
-       << Html(e.geometry_source) << "</td><td class='n' data-v='"
-       << e.num_frames << "'>" << e.num_frames << "</td><td class='n' data-v='"
-       << Fixed(e.mean_coverage, 6) << "'>" << Fixed(e.mean_coverage, 3)
-       << "</td>";
-    if (r.psnr_mean) {
-      os << "<td class='n' data-v='" << Fixed(*r.psnr_mean, 3) << "'>"
-         << Fixed(*r.psnr_mean, 1) << " dB</td>";
-    } else {
-      os << "<td class='n'>—</td>";
-    }
-    if (r.scale) {
-      os << "<td class='n' data-v='" << Short(*r.scale, 6) << "'>"
-         << Fixed(*r.scale, 2) << " m/unit</td>";
-    } else {
-      os << "<td class='n'";
-      if (!r.scale_note.empty()) os << " title='" << Html(r.scale_note) << "'";
-      os << ">—</td>";
-    }
-    os << "<td>—</td><td>";
-    if (k < kMaxVideoCards && (!r.gt.empty() || !r.cond.empty())) {
-      os << "<a href='#pair-" << k << "'>watch</a>";
-    } else {
-      bool any = false;
-      for (const auto& [name, url] :
-           {std::pair<std::string, std::string>("gt", r.gt),
-            {"cond", r.cond}}) {
-        if (url.empty()) continue;
-        os << (any ? " &middot; " : "") << "<a href='" << url << "'>" << name
-           << "</a>";
-        any = true;
-      }
-      if (!any) os << "—";
-    }
-    os << "</td></tr>";
-  }
-  for (size_t k = 0; k < fails.size(); ++k) {
-    const FailureEntry& f = fails[k];
-    os << "<tr class='fail-row' data-i='" << index++ << "' data-clip='"
-       << Html(f.clip_id) << "'><td><code>" << Html(f.clip_id)
-       << "</code></td><td>—</td><td>—</td><td class='n'>—</td>"
-          "<td class='n'>—</td><td class='n'>—</td><td class='n'>—</td>"
-          "<td><a href='#failure-"
-       << k << "'>" << Html(f.stage) << "</a></td><td>—</td></tr>";
-  }
-  os << "</tbody></table></div></section>\n";
-
-  // Failures with their messages.
-  os << "<section id='failures'><h2>Failures</h2>";
-  if (fails.empty()) {
-    os << "<p class='muted'>No clip failed.</p>";
-  } else {
-    if (summary && !summary->failures_by_stage.empty()) {
-      os << "<p>In this run:";
-      for (const auto& [stage, n] : summary->failures_by_stage)
-        os << " <span class='stage'>" << Html(stage) << "</span> " << n;
-      os << "</p>";
-    }
-    os << "<ol class='failures'>";
     for (size_t k = 0; k < fails.size(); ++k) {
       const FailureEntry& f = fails[k];
-      os << "<li id='failure-" << k << "' data-clip='" << Html(f.clip_id)
-         << "'><code class='clip'>" << Html(f.clip_id)
-         << "</code> <span class='stage'>" << Html(f.stage)
-         << "</span><pre class='msg'>" << Html(f.error) << "</pre></li>";
-    }
-    os << "</ol>";
-  }
-  os << "</section>\n";
-
-  // Each pair's ground truth and condition videos, side by side (stacked in
-  // a narrow window), over its preview strip (the fallback where the videos
-  // do not play).
-  os << "<section id='videos'><h2>Ground truth and condition videos</h2>";
-  const size_t cards = std::min(rows.size(), kMaxVideoCards);
-  if (rows.size() > cards) {
-    os << "<p class='muted'>Players for the first " << cards << " of "
-       << rows.size()
-       << " pairs (by clip id); the table links every pair's videos.</p>";
-  }
-  os << "<p class='note' id='codec-note' hidden>This browser cannot play "
-        "H.264 video: the players are replaced by links to the files; each "
-        "pair's preview strip shows its frames.</p><div class='cards'>";
-  for (size_t k = 0; k < cards; ++k) {
-    const PairRow& r = rows[k];
-    if (r.gt.empty() && r.cond.empty()) continue;
-    const std::string clip = Html(r.entry.clip_id);
-    os << "<article class='card' id='pair-" << k << "' data-clip='" << clip
-       << "'><h3><code>" << clip << "</code> <span class='muted'>"
-       << Html(r.entry.scene_name) << " &middot; " << r.entry.num_frames
-       << " frames &middot; coverage " << Fixed(r.entry.mean_coverage, 3);
-    if (r.psnr_mean) os << " &middot; PSNR " << Fixed(*r.psnr_mean, 1) << " dB";
-    os << "</span></h3><div class='vids'>";
-    for (const auto& [role, label, url, poster] :
-         {std::tuple<std::string, std::string, std::string, std::string>(
-              "gt", "ground truth", r.gt, r.first_frame),
-          {"cond", "condition", r.cond, ""}}) {
-      os << "<figure>";
-      if (url.empty()) {
-        os << "<div class='muted'>no " << label << " video</div>";
-      } else {
-        os << "<video class='" << role
-           << "' controls muted playsinline preload='metadata' src='" << url
-           << "' aria-label='" << label << " of " << clip << "'";
-        if (!r.video_ratio.empty())
-          os << " style='aspect-ratio:" << r.video_ratio << "'";
-        if (!poster.empty()) os << " poster='" << poster << "'";
-        os << ">";
-        if (!r.preview.empty())
-          os << "<img src='" << r.preview << "' alt='preview of " << clip
-             << "'>";
-        os << "<a href='" << url << "'>" << label << " video</a></video>";
-      }
-      os << "<figcaption>" << label << "</figcaption></figure>";
-    }
-    os << "</div>";
-    if (!r.preview.empty()) {
-      os << "<figure class='strip'><img loading='lazy' src='" << r.preview
-         << "' alt='preview of " << clip
-         << "'><figcaption>Every third frame: ground truth (top), condition "
-            "(bottom).</figcaption></figure>";
-    }
-    os << "</article>";
-  }
-  os << "</div></section>\n";
-
-  // Time per stage: wall and worker-thread CPU seconds (keys "cpu:<stage>",
-  // written by dataset/pair_builder.cc; the scale fit's CPU is inside
-  // geometry's), with each stage's share of the wall time.
-  if (has_time) {
-    const std::string cpu = "cpu:";
-    const auto& stages = summary->seconds_by_stage;
-    double wall_total = 0;
-    for (const auto& [s, t] : stages)
-      if (s.rfind(cpu, 0) != 0) wall_total += t;
-    os << "<section id='time'><h2>Time per stage</h2><p class='muted'>"
-          "Summed over clips (threads in parallel: the sum can exceed the run "
-          "time).</p><div class='scroll'><table><thead><tr><th>stage</th>"
-          "<th class='n'>wall</th><th class='n'>CPU</th><th>share of wall"
-          "</th></tr></thead><tbody>";
-    for (const auto& [s, t] : stages) {
-      if (s.rfind(cpu, 0) == 0) continue;
-      const auto c = stages.find(cpu + s);
-      const double share = wall_total > 0 ? t / wall_total : 0;
-      os << "<tr><th>" << Html(s) << "</th><td class='n'>" << Html(Seconds(t))
-         << "</td><td class='n'>"
-         << (c != stages.end() ? Html(Seconds(c->second)) : "—")
-         << "</td><td class='bar-cell' title='" << Fixed(100 * share, 1)
-         << " %'><span style='width:" << Fixed(100 * share, 1)
-         << "%'></span></td></tr>";
+      os << "<tr class='fail-row' data-i='" << index++ << "' data-clip='"
+         << Html(f.clip_id) << "'><td><code>" << Html(f.clip_id)
+         << "</code></td><td>—</td><td>—</td><td class='n'>—</td>"
+            "<td class='n'>—</td><td class='n'>—</td><td class='n'>—</td>"
+            "<td><a href='#failure-"
+         << k << "'>" << Html(f.stage) << "</a></td><td>—</td></tr>";
     }
     os << "</tbody></table></div></section>\n";
   }
 
-  os << "<script>" << kScript << "</script></body></html>\n";
-  WriteFileAtomic(out + "/report.html", os.str());
+  void Failures() {
+    // Failures with their messages.
+    os << "<section id='failures'><h2>Failures</h2>";
+    if (fails.empty()) {
+      os << "<p class='muted'>No clip failed.</p>";
+    } else {
+      if (summary && !summary->failures_by_stage.empty()) {
+        os << "<p>In this run:";
+        for (const auto& [stage, n] : summary->failures_by_stage)
+          os << " <span class='stage'>" << Html(stage) << "</span> " << n;
+        os << "</p>";
+      }
+      os << "<ol class='failures'>";
+      for (size_t k = 0; k < fails.size(); ++k) {
+        const FailureEntry& f = fails[k];
+        os << "<li id='failure-" << k << "' data-clip='" << Html(f.clip_id)
+           << "'><code class='clip'>" << Html(f.clip_id)
+           << "</code> <span class='stage'>" << Html(f.stage)
+           << "</span><pre class='msg'>" << Html(f.error) << "</pre></li>";
+      }
+      os << "</ol>";
+    }
+    os << "</section>\n";
+  }
+
+  void Videos() {
+    // Each pair's ground truth and condition videos, side by side (stacked in
+    // a narrow window), over its preview strip (the fallback where the videos
+    // do not play).
+    os << "<section id='videos'><h2>Ground truth and condition videos</h2>";
+    const size_t cards = std::min(rows.size(), kMaxVideoCards);
+    if (rows.size() > cards) {
+      os << "<p class='muted'>Players for the first " << cards << " of "
+         << rows.size()
+         << " pairs (by clip id); the table links every pair's videos.</p>";
+    }
+    os << "<p class='note' id='codec-note' hidden>This browser cannot play "
+          "H.264 video: the players are replaced by links to the files; each "
+          "pair's preview strip shows its frames.</p><div class='cards'>";
+    for (size_t k = 0; k < cards; ++k) {
+      const PairRow& r = rows[k];
+      if (r.gt.empty() && r.cond.empty()) continue;
+      const std::string clip = Html(r.entry.clip_id);
+      os << "<article class='card' id='pair-" << k << "' data-clip='" << clip
+         << "'><h3><code>" << clip << "</code> <span class='muted'>"
+         << Html(r.entry.scene_name) << " &middot; " << r.entry.num_frames
+         << " frames &middot; coverage " << Fixed(r.entry.mean_coverage, 3);
+      if (r.psnr_mean)
+        os << " &middot; PSNR " << Fixed(*r.psnr_mean, 1) << " dB";
+      os << "</span></h3><div class='vids'>";
+      for (const auto& [role, label, url, poster] :
+           {std::tuple<std::string, std::string, std::string, std::string>(
+                "gt", "ground truth", r.gt, r.first_frame),
+            {"cond", "condition", r.cond, ""}}) {
+        os << "<figure>";
+        if (url.empty()) {
+          os << "<div class='muted'>no " << label << " video</div>";
+        } else {
+          os << "<video class='" << role
+             << "' controls muted playsinline preload='metadata' src='" << url
+             << "' aria-label='" << label << " of " << clip << "'";
+          if (!r.video_ratio.empty())
+            os << " style='aspect-ratio:" << r.video_ratio << "'";
+          if (!poster.empty()) os << " poster='" << poster << "'";
+          os << ">";
+          if (!r.preview.empty())
+            os << "<img src='" << r.preview << "' alt='preview of " << clip
+               << "'>";
+          os << "<a href='" << url << "'>" << label << " video</a></video>";
+        }
+        os << "<figcaption>" << label << "</figcaption></figure>";
+      }
+      os << "</div>";
+      if (!r.preview.empty()) {
+        os << "<figure class='strip'><img loading='lazy' src='" << r.preview
+           << "' alt='preview of " << clip
+           << "'><figcaption>Every third frame: ground truth (top), condition "
+              "(bottom).</figcaption></figure>";
+      }
+      os << "</article>";
+    }
+    os << "</div></section>\n";
+  }
+
+  void TimePerStage() {
+    // Time per stage: wall and worker-thread CPU seconds (keys "cpu:<stage>",
+    // written by dataset/pair_builder.cc; the scale fit's CPU is inside
+    // geometry's), with each stage's share of the wall time.
+    if (has_time) {
+      const std::string cpu = "cpu:";
+      const auto& stages = summary->seconds_by_stage;
+      double wall_total = 0;
+      for (const auto& [s, t] : stages)
+        if (s.rfind(cpu, 0) != 0) wall_total += t;
+      os << "<section id='time'><h2>Time per stage</h2><p class='muted'>"
+            "Summed over clips (threads in parallel: the sum can exceed the "
+            "run "
+            "time).</p><div class='scroll'><table><thead><tr><th>stage</th>"
+            "<th class='n'>wall</th><th class='n'>CPU</th><th>share of wall"
+            "</th></tr></thead><tbody>";
+      for (const auto& [s, t] : stages) {
+        if (s.rfind(cpu, 0) == 0) continue;
+        const auto c = stages.find(cpu + s);
+        const double share = wall_total > 0 ? t / wall_total : 0;
+        os << "<tr><th>" << Html(s) << "</th><td class='n'>" << Html(Seconds(t))
+           << "</td><td class='n'>"
+           << (c != stages.end() ? Html(Seconds(c->second)) : "—")
+           << "</td><td class='bar-cell' title='" << Fixed(100 * share, 1)
+           << " %'><span style='width:" << Fixed(100 * share, 1)
+           << "%'></span></td></tr>";
+      }
+      os << "</tbody></table></div></section>\n";
+    }
+  }
+
+  const std::string out;
+  const BuildDatasetSummary* const summary;
+  std::vector<ManifestEntry> entries;
+  std::vector<FailureEntry> fails;
+  std::vector<PairRow> rows;
+  std::vector<double> coverage, scales, psnr;
+  std::map<std::string, std::vector<double>> coverage0_by_source;
+  std::string completion_url, completion_clip;
+  bool has_time = false;
+  std::ostringstream os;
+};
+
+}  // namespace
+
+void WriteBuildReport(const std::string& out,
+                      const BuildDatasetSummary* summary) {
+  WriteFileAtomic(out + "/report.html", ReportWriter(out, summary).Write());
 }
 
 }  // namespace geodrive
