@@ -73,6 +73,40 @@ int FixedAttributeSize(const std::string& type) {
   return it == kSizes.end() ? -1 : it->second;
 }
 
+// One part's data window against the limits, and what it adds to the
+// chunk table (its chunkCount, tiles or scan-line blocks) and to the pixel
+// bytes.
+void CheckExrPart(const std::string& path,
+                  const ExrPart& p,
+                  uint32_t flags,
+                  uint64_t* min_chunks,
+                  uint64_t* pixel_bytes) {
+  GEODRIVE_CHECK_INPUT(p.has_window, path,
+                       ": the EXR header has no dataWindow");
+  GEODRIVE_CHECK_INPUT(
+      p.width >= 1 && p.height >= 1 && p.width <= SizeLimits::kMaxImageSide &&
+          p.height <= SizeLimits::kMaxImageSide &&
+          p.width * p.height <= SizeLimits::kMaxImagePixels,
+      path, ": data window ", p.width, "x", p.height,
+      " is outside the reader's limit (1..", SizeLimits::kMaxImageSide,
+      " a side, ", SizeLimits::kMaxImagePixels, " pixels)");
+  int64_t chunks = 0;
+  if (p.chunk_count >= 0) {
+    chunks = p.chunk_count;
+  } else if (p.tiled || (flags & 0x200)) {
+    GEODRIVE_CHECK_INPUT(p.tile_w >= 1 && p.tile_h >= 1, path,
+                         ": EXR tiles of ", p.tile_w, "x", p.tile_h);
+    chunks = ((p.width + p.tile_w - 1) / p.tile_w) *
+             ((p.height + p.tile_h - 1) / p.tile_h);
+  } else {
+    const int lines = LinesPerChunk(p.compression);
+    chunks = (p.height + lines - 1) / lines;
+  }
+  *min_chunks += static_cast<uint64_t>(std::max<int64_t>(chunks, 0));
+  *pixel_bytes += static_cast<uint64_t>(p.width * p.height) *
+                  static_cast<uint64_t>(p.bytes_per_pixel);
+}
+
 // Parses the header (every part's attributes) from `head`, the file's first
 // bytes, and checks each declared size against the limits and the file's
 // `file_size` bytes before OpenEXR sees the file (which sizes its offset table
@@ -190,30 +224,7 @@ void CheckExrHeader(const std::string& path) {
   uint64_t min_chunks = 0, pixel_bytes = 0;
   bool uncompressed = true;
   for (const ExrPart& p : parts) {
-    GEODRIVE_CHECK_INPUT(p.has_window, path,
-                         ": the EXR header has no dataWindow");
-    GEODRIVE_CHECK_INPUT(
-        p.width >= 1 && p.height >= 1 && p.width <= SizeLimits::kMaxImageSide &&
-            p.height <= SizeLimits::kMaxImageSide &&
-            p.width * p.height <= SizeLimits::kMaxImagePixels,
-        path, ": data window ", p.width, "x", p.height,
-        " is outside the reader's limit (1..", SizeLimits::kMaxImageSide,
-        " a side, ", SizeLimits::kMaxImagePixels, " pixels)");
-    int64_t chunks = 0;
-    if (p.chunk_count >= 0) {
-      chunks = p.chunk_count;
-    } else if (p.tiled || (flags & 0x200)) {
-      GEODRIVE_CHECK_INPUT(p.tile_w >= 1 && p.tile_h >= 1, path,
-                           ": EXR tiles of ", p.tile_w, "x", p.tile_h);
-      chunks = ((p.width + p.tile_w - 1) / p.tile_w) *
-               ((p.height + p.tile_h - 1) / p.tile_h);
-    } else {
-      const int lines = LinesPerChunk(p.compression);
-      chunks = (p.height + lines - 1) / lines;
-    }
-    min_chunks += static_cast<uint64_t>(std::max<int64_t>(chunks, 0));
-    pixel_bytes += static_cast<uint64_t>(p.width * p.height) *
-                   static_cast<uint64_t>(p.bytes_per_pixel);
+    CheckExrPart(path, p, flags, &min_chunks, &pixel_bytes);
     uncompressed = uncompressed && p.compression == 0;
   }
   // Each chunk has an 8-byte offset and at least an 8-byte chunk header.
