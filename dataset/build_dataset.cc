@@ -637,6 +637,24 @@ struct OutputLocks {
 
 }  // namespace
 
+namespace {
+
+// Clip ids are folder names: plain (adapters make them with MakeClipId,
+// whose scene part goes through PathComponentFromName) and unique.
+void CheckClipIdsAreFolderNames(const std::vector<std::string>& clips,
+                                const std::string& dataroot) {
+  std::set<std::string> seen;
+  for (const auto& c : clips) {
+    GEODRIVE_CHECK_INPUT(IsPlainPathComponent(c), dataroot, ": clip id '",
+                         PathComponentFromName(c),
+                         "' (percent-encoded) is not a plain folder name");
+    GEODRIVE_CHECK_INPUT(seen.insert(c).second, dataroot, ": clip id '", c,
+                         "' is listed twice");
+  }
+}
+
+}  // namespace
+
 BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   opt.Check();
   const auto t_start = std::chrono::steady_clock::now();
@@ -653,18 +671,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();
-  // Clip ids are folder names: plain (adapters make them with MakeClipId,
-  // whose scene part goes through PathComponentFromName) and unique.
-  {
-    std::set<std::string> seen;
-    for (const auto& c : clips) {
-      GEODRIVE_CHECK_INPUT(IsPlainPathComponent(c), opt.dataroot, ": clip id '",
-                           PathComponentFromName(c),
-                           "' (percent-encoded) is not a plain folder name");
-      GEODRIVE_CHECK_INPUT(seen.insert(c).second, opt.dataroot, ": clip id '",
-                           c, "' is listed twice");
-    }
-  }
+  CheckClipIdsAreFolderNames(clips, opt.dataroot);
   if (!opt.clips.empty()) clips = RequestedClips(std::move(clips), opt);
   std::map<std::string, int> clip_index;
   for (size_t i = 0; i < dataset->ClipIds().size(); ++i)
