@@ -17,6 +17,7 @@
 #include "geometry/util/files.h"
 #include "geometry/util/output_file.h"
 #include "geometry/util/status.h"
+#include "tests/common/temporaries.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {
@@ -27,6 +28,7 @@ namespace job_guarantees_test {
 namespace fs = std::filesystem;
 using test::GeodriveBinary;
 using test::RunCommand;
+using test::Temporaries;
 
 // A one-scene synthetic world: a few seconds to build at 96x160.
 const std::string& SmallWorld() {
@@ -46,16 +48,6 @@ const std::string& SmallWorld() {
 std::string Build(const std::string& dataroot, const std::string& out) {
   return GeodriveBinary() + " build-dataset --dataroot " + dataroot +
          " --geometry lidar --clip-frames 8 --size 96x160 --quiet --out " + out;
-}
-
-// Paths under `dir` whose name marks a temporary (".tmp").
-std::vector<std::string> Temporaries(const std::string& dir) {
-  std::vector<std::string> found;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (e.path().filename().string().find(".tmp") != std::string::npos)
-      found.push_back(e.path().string());
-  }
-  return found;
 }
 
 std::vector<std::string> ManifestIds(const std::string& out) {

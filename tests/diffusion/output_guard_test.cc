@@ -14,6 +14,7 @@
 #include "diffusion/safetensors.h"
 #include "geometry/util/files.h"
 #include "geometry/util/output_file.h"
+#include "tests/common/temporaries.h"
 #include "tests/common/test_util.h"
 #include "tests/diffusion/diffusion_test_util.h"
 
@@ -29,15 +30,7 @@ namespace output_guard_test {
 namespace fs = std::filesystem;
 using test::DiffusionCommand;
 using test::RunCommand;
-
-std::vector<std::string> Temporaries(const std::string& dir) {
-  std::vector<std::string> found;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (e.path().filename().string().find(".tmp") != std::string::npos)
-      found.push_back(e.path().string());
-  }
-  return found;
-}
+using test::Temporaries;
 
 // Instances: sample --out = --weights spelled otherwise, sample --out a hard
 // link of --latents, generate --out inside its --geometry folder.
