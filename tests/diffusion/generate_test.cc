@@ -4,14 +4,17 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <opencv2/core.hpp>
 #include <string>
+#include <thread>
 
 #include "dataset/pairs.h"
+#include "diffusion/safetensors.h"
 #include "geometry/camera.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
@@ -21,6 +24,7 @@
 #include "geometry/trajectory_io.h"
 #include "geometry/trajectory_json.h"
 #include "render/video/video_io.h"
+#include "tests/common/temporaries.h"
 #include "tests/common/test_util.h"
 #include "tests/diffusion/diffusion_test_util.h"
 
@@ -325,6 +329,57 @@ TEST(DiffusionGenerate, SceneToolPathMatchesTheMonst3rFolder) {
                        &out),
       2);
   EXPECT_NE(out.find("exactly one of --geometry"), std::string::npos) << out;
+}
+
+// SIGTERM while sampling (1000 steps of tiny-49, about 5 s): exit 130, no
+// temporary left, and nothing half-written: no video, no preview, no sample
+// latents; the latents written before the signal are whole files.
+TEST(DiffusionGenerate, SigtermExits130WithoutPartialOutput) {
+  const std::string dir = test::MakeTempDir("generate_sigterm");
+  const std::string m3r = WriteMonst3rFolder(dir, 9);
+  const std::string w = dir + "/tiny49.safetensors";
+  std::string log;
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() +
+                                 " init-weights --config tiny-49 --seed 3 "
+                                 "--nonzero-branch --out " +
+                                 w,
+                             &log),
+            0)
+      << log;
+  const std::string out = dir + "/gen";
+  const std::string pidfile = dir + "/pid", rcfile = dir + "/rc";
+  // The subshell's own output is redirected too, so RunCommand does not wait
+  // for it.
+  ASSERT_EQ(test::RunCommand("(" + test::DiffusionCommand() +
+                             " generate --geometry " + m3r + " --weights " + w +
+                             " --config tiny-49 --frames 7 --steps 1000 "
+                             "--no-progress --out " +
+                             out + "/video.mp4; echo $? > " + rcfile +
+                             ") > /dev/null 2>&1 & echo $! > " + pidfile),
+            0);
+  // The condition latents are written: sampling has begun.
+  const std::string latents = out + "/video_latents";
+  bool signalled = false;
+  for (int i = 0; i < 1500 && !signalled && !fs::exists(rcfile); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (fs::exists(latents + "/cond.safetensors")) {
+      test::RunCommand("pkill -TERM -P " + test::ReadFile(pidfile));
+      signalled = true;
+    }
+  }
+  ASSERT_TRUE(signalled) << "generate ended (exit " << test::ReadFile(rcfile)
+                         << ") before its latents were written";
+  for (int i = 0; i < 600 && !fs::exists(rcfile); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(test::ReadFile(rcfile), "130\n");
+  EXPECT_TRUE(test::Temporaries(out).empty()) << test::Temporaries(out).front();
+  EXPECT_FALSE(fs::exists(out + "/video.mp4"));
+  EXPECT_FALSE(fs::exists(out + "/video_preview.png"));
+  EXPECT_FALSE(fs::exists(latents + "/sample.safetensors"));
+  for (const auto& e : fs::directory_iterator(latents)) {
+    EXPECT_NO_THROW(diffusion::LoadSafetensors(e.path().string())) << e.path();
+  }
 }
 
 TEST(DiffusionGenerate, BadArgumentsExitTwoWithOneLine) {
