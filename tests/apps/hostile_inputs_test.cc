@@ -14,6 +14,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
@@ -202,6 +203,42 @@ TEST(HostileSizes, RenderOf3000FramesStreams) {
   std::string json((std::istreambuf_iterator<char>(rj)), {});
   EXPECT_NE(json.find("\"contact_sheet_frames\": 100"), std::string::npos);
   EXPECT_NE(json.find("\"frame\": 2999"), std::string::npos);
+}
+
+// `build-dataset --geometry lidar-dense --lidar-dense-width 16384`: a
+// 16384 x 9216 frame-0 depth needs about 11.5 GiB (80 bytes a pixel,
+// dataset/scene_source.h), far over the limit. Refused at start, before --out
+// is created or a clip is read: exit 2, one line naming the option and the
+// estimate. (Checked per clip only, the run would exit 3 with a failure per
+// clip; not checked at all, each clip would fail on its allocation.) The
+// same job with a 160-pixel depth builds under the same limit.
+TEST(HostileSizes, LidarDenseWidthOverTheMemoryIsRefusedAtStart) {
+  const std::string dir = test::MakeTempDir("hostile_lidar_dense");
+  std::string log;
+  ASSERT_EQ(test::RunCommand(test::GeodriveBinary() + " synth --out " + dir +
+                                 "/world --scenes 1 --seed 3 --size 90x160 "
+                                 "--duration 2 --lidar-azimuth-steps 180",
+                             &log),
+            0)
+      << log;
+  const std::string job = "build-dataset --dataroot " + dir +
+                          "/world --geometry lidar-dense --clip-frames 4 "
+                          "--size 96x160 --quiet";
+  const auto start = std::chrono::steady_clock::now();
+  const CliRun r =
+      Geodrive(job + " --lidar-dense-width 16384 --out " + dir + "/out");
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+          .count();
+  ExpectOneLineError(r, "build-dataset: error: --lidar-dense-width 16384: ",
+                     "of 16384x9216 needs about 11520 MiB, and ");
+  EXPECT_NE(r.output.find(" MiB are available"), std::string::npos) << r.output;
+  EXPECT_LT(seconds, 10.0) << r.output;
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+  const CliRun ok =
+      Geodrive(job + " --lidar-dense-width 160 --out " + dir + "/ok");
+  EXPECT_EQ(ok.code, 0) << ok.output;
+  EXPECT_EQ(test::CountLines(test::ReadFile(dir + "/ok/manifest.jsonl")), 3);
 }
 
 // Paths that are not regular files (geometry/util/input_file.h): `info` on a
