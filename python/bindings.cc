@@ -562,6 +562,88 @@ void BindScenes(py::module_& m) {
 
 // ---- Rendering and trajectories ----
 
+// render()'s output: renders `cloud` from each of `poses` straight into numpy
+// arrays, those of `out` (a previous result of the same shapes: rendered in
+// place, as a C++ loop reuses its frames) or fresh ones, and returns them as
+// {'rgb', 'depth', 'valid'}.
+py::dict RenderIntoArrays(const PointCloud& cloud,
+                          const PinholeCamera& camera,
+                          const std::vector<Rigid3d>& poses,
+                          const RenderOptions& o,
+                          const py::object& out) {
+  const py::ssize_t T = static_cast<py::ssize_t>(poses.size());
+  const int H = o.height, W = o.width;
+  py::array_t<uint8_t> rgb;
+  py::array_t<float> depth;
+  py::array_t<bool> valid;
+  const std::vector<py::ssize_t> image = {T, H, W};
+  auto fits = [&](const py::array& a, std::vector<py::ssize_t> shape) {
+    if (a.ndim() != static_cast<py::ssize_t>(shape.size()) ||
+        !(a.flags() & py::array::c_style) || !a.writeable())
+      return false;
+    for (size_t i = 0; i < shape.size(); ++i)
+      if (a.shape(i) != shape[i]) return false;
+    return true;
+  };
+  bool reuse = false;
+  if (!out.is_none()) {
+    GEODRIVE_CHECK_INPUT(py::isinstance<py::dict>(out), "out",
+                         ": expected a previous render() result");
+    py::dict d = out.cast<py::dict>();
+    reuse = d.contains("rgb") && d.contains("depth") && d.contains("valid") &&
+            py::isinstance<py::array_t<uint8_t>>(d["rgb"]) &&
+            py::isinstance<py::array_t<float>>(d["depth"]) &&
+            py::isinstance<py::array_t<bool>>(d["valid"]);
+    if (reuse) {
+      rgb = d["rgb"].cast<py::array_t<uint8_t>>();
+      depth = d["depth"].cast<py::array_t<float>>();
+      valid = d["valid"].cast<py::array_t<bool>>();
+      reuse =
+          fits(rgb, {T, H, W, 3}) && fits(depth, image) && fits(valid, image);
+    }
+    GEODRIVE_CHECK_INPUT(reuse, "out",
+                         ": its arrays do not match this render (", T,
+                         " frames of ", H, "x", W, ")");
+  } else {
+    rgb = py::array_t<uint8_t>(
+        {T, py::ssize_t{H}, py::ssize_t{W}, py::ssize_t{3}});
+    depth = py::array_t<float>(image);
+    valid = py::array_t<bool>(image);
+  }
+  uint8_t* rgb_p = rgb.mutable_data();
+  float* depth_p = depth.mutable_data();
+  // numpy bool is one byte: the renderer's mask (0 / 255) is written there,
+  // then folded to 0 / 1.
+  uint8_t* valid_p = reinterpret_cast<uint8_t*>(valid.mutable_data());
+  {
+    py::gil_scoped_release release;
+    const size_t px = static_cast<size_t>(H) * W;
+    RenderResult r;
+    r.frames.resize(T);
+    for (py::ssize_t t = 0; t < T; ++t) {
+      r.frames[t].rgb = cv::Mat(H, W, CV_8UC3, rgb_p + t * px * 3);
+      r.frames[t].depth = cv::Mat(H, W, CV_32F, depth_p + t * px);
+      r.frames[t].mask = cv::Mat(H, W, CV_8U, valid_p + t * px);
+    }
+    RenderFramesInto(cloud, {camera}, poses, o, &r);
+    for (py::ssize_t t = 0; t < T; ++t) {    // in place, unless the
+      const RenderedFrame& f = r.frames[t];  // renderer reallocated
+      if (f.rgb.data != rgb_p + t * px * 3)
+        std::memcpy(rgb_p + t * px * 3, f.rgb.data, px * 3);
+      if (f.depth.data != reinterpret_cast<uint8_t*>(depth_p + t * px))
+        std::memcpy(depth_p + t * px, f.depth.data, px * sizeof(float));
+      if (f.mask.data != valid_p + t * px)
+        std::memcpy(valid_p + t * px, f.mask.data, px);
+    }
+    for (size_t i = 0; i < px * T; ++i) valid_p[i] = valid_p[i] != 0;
+  }
+  py::dict result;
+  result["rgb"] = rgb;
+  result["depth"] = depth;
+  result["valid"] = valid;
+  return result;
+}
+
 void BindRender(py::module_& m) {
   m.def(
       "render",
@@ -620,80 +702,7 @@ void BindRender(py::module_& m) {
                 Eigen::Vector3f(a[6 * i + 3], a[6 * i + 4], a[6 * i + 5]);
           }
         }
-        const py::ssize_t T = static_cast<py::ssize_t>(poses.size());
-        // The output arrays: those of `out` (a previous result of the same
-        // shapes: rendered in place, as a C++ loop reuses its frames) or
-        // fresh ones. The renderer writes straight into them.
-        py::array_t<uint8_t> rgb;
-        py::array_t<float> depth;
-        py::array_t<bool> valid;
-        const std::vector<py::ssize_t> image = {T, H, W};
-        auto fits = [&](const py::array& a, std::vector<py::ssize_t> shape) {
-          if (a.ndim() != static_cast<py::ssize_t>(shape.size()) ||
-              !(a.flags() & py::array::c_style) || !a.writeable())
-            return false;
-          for (size_t i = 0; i < shape.size(); ++i)
-            if (a.shape(i) != shape[i]) return false;
-          return true;
-        };
-        bool reuse = false;
-        if (!out.is_none()) {
-          GEODRIVE_CHECK_INPUT(py::isinstance<py::dict>(out), "out",
-                               ": expected a previous render() result");
-          py::dict d = out.cast<py::dict>();
-          reuse = d.contains("rgb") && d.contains("depth") &&
-                  d.contains("valid") &&
-                  py::isinstance<py::array_t<uint8_t>>(d["rgb"]) &&
-                  py::isinstance<py::array_t<float>>(d["depth"]) &&
-                  py::isinstance<py::array_t<bool>>(d["valid"]);
-          if (reuse) {
-            rgb = d["rgb"].cast<py::array_t<uint8_t>>();
-            depth = d["depth"].cast<py::array_t<float>>();
-            valid = d["valid"].cast<py::array_t<bool>>();
-            reuse = fits(rgb, {T, H, W, 3}) && fits(depth, image) &&
-                    fits(valid, image);
-          }
-          GEODRIVE_CHECK_INPUT(reuse, "out",
-                               ": its arrays do not match this render (", T,
-                               " frames of ", H, "x", W, ")");
-        } else {
-          rgb = py::array_t<uint8_t>(
-              {T, py::ssize_t{H}, py::ssize_t{W}, py::ssize_t{3}});
-          depth = py::array_t<float>(image);
-          valid = py::array_t<bool>(image);
-        }
-        uint8_t* rgb_p = rgb.mutable_data();
-        float* depth_p = depth.mutable_data();
-        // numpy bool is one byte: the renderer's mask (0 / 255) is written
-        // there, then folded to 0 / 1.
-        uint8_t* valid_p = reinterpret_cast<uint8_t*>(valid.mutable_data());
-        {
-          py::gil_scoped_release release;
-          const size_t px = static_cast<size_t>(H) * W;
-          RenderResult r;
-          r.frames.resize(T);
-          for (py::ssize_t t = 0; t < T; ++t) {
-            r.frames[t].rgb = cv::Mat(H, W, CV_8UC3, rgb_p + t * px * 3);
-            r.frames[t].depth = cv::Mat(H, W, CV_32F, depth_p + t * px);
-            r.frames[t].mask = cv::Mat(H, W, CV_8U, valid_p + t * px);
-          }
-          RenderFramesInto(cloud, {camera}, poses, o, &r);
-          for (py::ssize_t t = 0; t < T; ++t) {    // in place, unless the
-            const RenderedFrame& f = r.frames[t];  // renderer reallocated
-            if (f.rgb.data != rgb_p + t * px * 3)
-              std::memcpy(rgb_p + t * px * 3, f.rgb.data, px * 3);
-            if (f.depth.data != reinterpret_cast<uint8_t*>(depth_p + t * px))
-              std::memcpy(depth_p + t * px, f.depth.data, px * sizeof(float));
-            if (f.mask.data != valid_p + t * px)
-              std::memcpy(valid_p + t * px, f.mask.data, px);
-          }
-          for (size_t i = 0; i < px * T; ++i) valid_p[i] = valid_p[i] != 0;
-        }
-        py::dict result;
-        result["rgb"] = rgb;
-        result["depth"] = depth;
-        result["valid"] = valid;
-        return result;
+        return RenderIntoArrays(cloud, camera, poses, o, out);
       },
       py::arg("points"), py::arg("colors"), py::arg("K"),
       py::arg("cam_from_world"), py::arg("size") = std::make_pair(480, 720),
