@@ -9,6 +9,7 @@
 
 #include "apps/cli/cli.h"
 #include "dataset/build_dataset.h"
+#include "dataset/drive_dataset.h"
 #include "dataset/scene_source.h"
 #include "geometry/util/files.h"
 #include "geometry/util/progress.h"
@@ -30,6 +31,7 @@ struct Args {
   std::string size = "480x720";
   std::string clips;
   std::string merge;
+  std::string cameras;
 };
 
 void ParseShard(const std::string& text, int* index, int* count) {
@@ -58,6 +60,8 @@ int Run(Args& a) {
   }
   BuildDatasetOptions& o = a.options;
   ParseShard(a.shard, &o.shard_index, &o.shard_count);
+  if (!a.cameras.empty())
+    o.cameras = ParseCameraList(a.cameras, "CAM_FRONT", "--cameras");
   ParseSizeHxW(a.size, "--size", &o.height, &o.width);
   // The lidar-dense frame-0 depth's memory, from the option alone (a 16:9
   // camera, nuScenes' CAM_FRONT); each clip checks its own camera again.
@@ -215,6 +219,13 @@ void AddPairOptions(CLI::App& app, Args& a) {
               {"all", ClipFrameSource::kAll},
               {"keyframes", ClipFrameSource::kKeyframes}}))
       ->default_str("all");
+  app.add_option(
+      "--cameras", a.cameras,
+      "Surround view: all, or CAM_FRONT,CAM_FRONT_LEFT,... (CAM_FRONT "
+      "included). One scene per clip (lidar or lidar-dense) rendered into "
+      "every camera, each along its own poses; per camera gt_<CAM>.mp4 and "
+      "cond_<CAM>.mp4, a rig-layout preview.png, meta.json views and seams "
+      "(docs/how-to/surround-view.md). Default: CAM_FRONT pairs");
   app.add_option("--size", a.size, "Output HxW")->capture_default_str();
   app.add_option("--resize-mode", o.resize_mode,
                  "resize (plain, GeoDrive training) or center-crop (GeoDrive "

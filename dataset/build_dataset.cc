@@ -109,6 +109,17 @@ void BuildDatasetOptions::Check() const {
       "build-dataset: --x264-preset '", video_preset,
       "' is not an x264 preset (ultrafast superfast veryfast faster fast "
       "medium slow slower veryslow placebo)");
+  if (!cameras.empty()) {  // surround view (dataset/rig.h)
+    GEODRIVE_CHECK_INPUT(source == "lidar" || source == "lidar-dense",
+                         "build-dataset: --cameras needs metric geometry "
+                         "shared by the rig (--geometry lidar or lidar-dense), "
+                         "not ",
+                         source);
+    GEODRIVE_CHECK_INPUT(export_format == PairExport::kNone,
+                         "build-dataset: --export geodrive-upstream is "
+                         "single-camera (GeoDrive's trainer reads CAM_FRONT "
+                         "only); drop --cameras or --export");
+  }
 }
 
 std::string BuildDatasetOptions::ContentOptionsJson() const {
@@ -123,6 +134,7 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   // (all frames) stays valid for resuming them.
   if (frames != ClipFrameSource::kAll) j["frames"] = ToString(frames);
   if (refine_poses) j["refine_poses"] = true;
+  if (!cameras.empty()) j["cameras"] = cameras;
   if (export_format == PairExport::kGeodriveUpstream)
     j["export"] = "geodrive-upstream";
   j["width"] = width;
@@ -373,15 +385,24 @@ double Mean(const std::vector<double>& v) {
   return v.empty() ? 0.0 : s / v.size();
 }
 
+// A surround-view pair's mean coverage is over every camera's frames.
 ManifestEntry EntryFromMeta(const PairMeta& meta) {
+  std::vector<double> coverage = meta.quality.coverage;
+  std::vector<std::string> cameras;
+  if (!meta.views.empty()) coverage.clear();
+  for (const PairView& v : meta.views) {
+    coverage.insert(coverage.end(), v.coverage.begin(), v.coverage.end());
+    cameras.push_back(v.channel);
+  }
   return {meta.clip_id,
           "pairs/" + meta.clip_id,
           meta.scene_name,
           static_cast<int>(meta.frames.size()),
           meta.geometry_source,
           meta.pose_units,
-          std::min(1.0, std::max(0.0, Mean(meta.quality.coverage))),
-          meta.options_hash};
+          std::min(1.0, std::max(0.0, Mean(coverage))),
+          meta.options_hash,
+          cameras};
 }
 
 // What the manifest of a run lists: the pairs of the dataset's clips (all of
@@ -668,6 +689,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   dso.clip_frames = opt.clip_frames;
   dso.clip_stride = opt.clip_stride;
   dso.frames = opt.frames;
+  dso.cameras = opt.cameras;
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();

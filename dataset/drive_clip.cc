@@ -26,6 +26,18 @@ double DriveClip::FrameIntervalSeconds() const {
   return dt[dt.size() / 2] * 1e-6;
 }
 
+DriveClip DriveClip::View(int k) const {
+  GEODRIVE_CHECK_INPUT(k >= 0 && k < num_views(), id, ": no view ", k, " (",
+                       num_views(), " cameras)");
+  DriveClip view = *this;
+  view.rig.clear();
+  if (!rig.empty()) {
+    view.channel = rig[k].channel;
+    view.frames = rig[k].frames;
+  }
+  return view;
+}
+
 std::vector<size_t> LidarProvider::SweepsBetween(int64_t lo_us,
                                                  int64_t hi_us) const {
   std::vector<size_t> out;

@@ -101,6 +101,16 @@ class LidarProvider {
   std::optional<size_t> Nearest(int64_t t_us) const;
 };
 
+// One camera of a surround-view clip: its frames, matched one to one with the
+// clip's reference frames (DriveClip::frames), each with its own timestamp,
+// ego pose (the ego at that camera's capture time, never the LiDAR's),
+// mounting and intrinsics.
+struct CameraStream {
+  // Camera channel, e.g. "CAM_FRONT_LEFT".
+  std::string channel;
+  std::vector<DriveFrame> frames;
+};
+
 struct DriveClip {
   // Clip id, unique in its dataset (e.g. "scene-0916_0006").
   std::string id;
@@ -117,6 +127,9 @@ struct DriveClip {
   // Units of poses, boxes and LiDAR ("metres" for every driving dataset).
   std::string units = "metres";
   std::vector<DriveFrame> frames;
+  // Surround view: every camera the user selected, the reference camera
+  // (`channel`, `frames`) first; empty for a single-camera clip.
+  std::vector<CameraStream> rig;
   // LiDAR of the scene; null when the dataset has none.
   std::shared_ptr<const LidarProvider> lidar;
   // Where each piece came from, e.g. {"poses": "ego_pose.json ∘
@@ -125,6 +138,13 @@ struct DriveClip {
   std::map<std::string, std::string> provenance;
 
   int num_frames() const { return static_cast<int>(frames.size()); }
+  // Cameras of the clip: rig.size(), or 1 for a single-camera clip.
+  int num_views() const {
+    return rig.empty() ? 1 : static_cast<int>(rig.size());
+  }
+  // The single-camera clip of view `k` (< num_views()): the same id, scene,
+  // boxes' instances and LiDAR, with that camera's channel and frames.
+  DriveClip View(int k) const;
   // Median time between consecutive frames (s); 0 for fewer than 2 frames.
   double FrameIntervalSeconds() const;
 };

@@ -27,8 +27,14 @@ struct DriveDatasetOptions {
   std::string root;
   // Table version (nuScenes: v1.0-mini, v1.0-trainval, ...).
   std::string version = "v1.0-mini";
-  // Camera channel whose frames make the clips.
+  // Camera channel whose frames make the clips (the reference camera).
   std::string channel = "CAM_FRONT";
+  // Surround view: the cameras every clip carries (DriveClip::rig), the
+  // reference `channel` among them (put first); {"all"} = every camera of the
+  // dataset. Each reference frame is matched, per camera, to that camera's
+  // frame of the same sample (keyframes) or the one nearest in time (within
+  // kMaxRigTimeGapUs). Empty = single-camera clips.
+  std::vector<std::string> cameras;
   // Every frame of the channel, or only its keyframes (for extracts without
   // sweep files; clip ids then end in "_kf").
   ClipFrameSource frames = ClipFrameSource::kAll;
@@ -40,6 +46,20 @@ struct DriveDatasetOptions {
   // True if the options are usable (root set, clip_frames >= 2, stride >= 1).
   bool Check() const;
 };
+
+// Largest time between a reference frame and a rig camera's matched frame
+// (nuScenes' six cameras fire within about 40 ms of each other at 12 Hz).
+constexpr int64_t kMaxRigTimeGapUs = 60000;
+
+// The nuScenes camera channels in the rig's layout order: the front row left
+// to right, then the back row left to right (as the mosaic shows them).
+const std::vector<std::string>& NuscenesRigLayout();
+// "all" or "A,B,..." -> the camera list of DriveDatasetOptions::cameras
+// (trimmed, no duplicates; `reference` moved first). Throws InputError naming
+// `option` for an empty name or a duplicate.
+std::vector<std::string> ParseCameraList(const std::string& text,
+                                         const std::string& reference,
+                                         const std::string& option);
 
 class DriveDataset {
  public:

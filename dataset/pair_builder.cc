@@ -3,8 +3,6 @@
 
 #include "dataset/internal/pair_builder.h"
 
-#include <time.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -31,53 +29,6 @@
 namespace geodrive {
 namespace internal {
 namespace {
-
-double ThreadCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-// Times each stage into a map: wall time under the stage's name and this
-// thread's CPU time under kCpuStagePrefix + name (the figure that holds on a
-// shared machine; helper threads of a stage are not counted); tags exceptions
-// with the stage.
-class StageTimer {
- public:
-  explicit StageTimer(std::map<std::string, double>* sink) : sink_(sink) {}
-  template <typename F>
-  auto Run(const std::string& stage, F&& f) -> decltype(f()) {
-    const auto t0 = std::chrono::steady_clock::now();
-    const double cpu0 = ThreadCpuSeconds();
-    try {
-      if constexpr (std::is_void_v<decltype(f())>) {
-        f();
-        Add(stage, t0, cpu0);
-      } else {
-        auto result = f();
-        Add(stage, t0, cpu0);
-        return result;
-      }
-    } catch (const StageError&) {
-      Add(stage, t0, cpu0);
-      throw;
-    } catch (const std::exception& e) {
-      Add(stage, t0, cpu0);
-      throw StageError(stage, e.what());
-    }
-  }
-
- private:
-  void Add(const std::string& stage,
-           std::chrono::steady_clock::time_point t0,
-           double cpu0) {
-    (*sink_)[stage] +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-            .count();
-    (*sink_)[kCpuStagePrefix + stage] += ThreadCpuSeconds() - cpu0;
-  }
-  std::map<std::string, double>* sink_;
-};
 
 bool IsVehicle(const std::string& category) {
   return category.rfind("vehicle.", 0) == 0;
@@ -232,13 +183,20 @@ ConditionScene BuildClipScene(const DriveClip& clip,
 BoxSequences ClipVehicleBoxes(const DriveClip& clip,
                               bool metric,
                               const BuildDatasetOptions& opt) {
+  return ClipVehicleBoxes(clip, metric, opt,
+                          clip.frames.front().world_from_cam.Inverse());
+}
+
+BoxSequences ClipVehicleBoxes(const DriveClip& clip,
+                              bool metric,
+                              const BuildDatasetOptions& opt,
+                              const Rigid3d& scene_from_world) {
   const int n = clip.num_frames();
   BoxSequences boxes;
   boxes.image_width = opt.width;
   boxes.image_height = opt.height;
   boxes.num_frames = n;
   boxes.units = metric ? "metres" : "monst3r";
-  const Rigid3d cam0_from_world = clip.frames.front().world_from_cam.Inverse();
   const PinholeCamera& cam_full = clip.frames.front().camera;
   const PinholeCamera true_cam_out =
       ApplyResizeSpec(cam_full, OutputSpec(cam_full, opt));
@@ -252,7 +210,7 @@ BoxSequences ClipVehicleBoxes(const DriveClip& clip,
       BoxFrame frame;
       frame.frame = i;
       if (box2d) frame.box_2d = box2d;
-      if (metric) frame.box_3d = b.box.Transformed(cam0_from_world);
+      if (metric) frame.box_3d = b.box.Transformed(scene_from_world);
       if (!frame.box_2d && !frame.box_3d) continue;
       BoxSequence& seq = by_instance[b.instance_id];
       seq.id = b.instance_id;
@@ -269,20 +227,35 @@ ConditionRender RenderCondition(const ConditionScene& scene,
                                 const BoxSequences& boxes,
                                 const std::vector<cv::Mat>& gt,
                                 const BuildDatasetOptions& opt) {
-  const int n = static_cast<int>(scene.trajectory.size());
+  ViewToRender view;
+  view.cloud = &scene.cloud;
+  view.camera = scene.camera;
+  view.scene_from_cam = scene.trajectory.world_from_cam;
+  view.metric = scene.metric();
+  view.dynamic_mask = scene.dynamic_mask;
+  return RenderConditionView(view, boxes, gt, opt);
+}
+
+ConditionRender RenderConditionView(const ViewToRender& view,
+                                    const BoxSequences& boxes,
+                                    const std::vector<cv::Mat>& gt,
+                                    const BuildDatasetOptions& opt) {
+  const PointCloud& cloud = *view.cloud;
+  const int n = static_cast<int>(view.scene_from_cam.size());
   const RenderPreset preset = opt.preset;
   std::vector<Rigid3d> cam_from_cam0(n);
   for (int i = 0; i < n; ++i)
-    cam_from_cam0[i] = scene.trajectory.world_from_cam[i].Inverse();
+    cam_from_cam0[i] = view.scene_from_cam[i].Inverse();
   RenderOptions ro = PresetRenderOptions(preset);
-  PinholeCamera cam_render =
-      scene.CameraAt(opt.width, opt.height, opt.resize_mode);
+  PinholeCamera cam_render = ApplyResizeSpec(
+      view.camera, ComputeResizeSpec(view.camera.width, view.camera.height,
+                                     opt.width, opt.height, opt.resize_mode));
   if (preset != RenderPreset::kGeodriveCompat) {  // the z-buffer presets
     ro.width = opt.width;
     ro.height = opt.height;
     // The footprint preset sizes every point from its footprint.
     if (preset == RenderPreset::kPaper) ro.radius_px = opt.splat_radius_px;
-    if (!scene.metric()) {  // a depth range in metres is meaningless then
+    if (!view.metric) {  // a depth range in metres is meaningless then
       ro.near = 1e-6;
       ro.far = std::numeric_limits<double>::infinity();
     }
@@ -292,17 +265,17 @@ ConditionRender RenderCondition(const ConditionScene& scene,
   ro.num_threads = opt.threads > 1 ? 1 : 0;
   RenderResult result;
   if (opt.edit_mode == PairEditMode::kNone || boxes.instances.empty()) {
-    result = RenderFrames(scene.cloud, {cam_render}, cam_from_cam0, ro);
+    result = RenderFrames(cloud, {cam_render}, cam_from_cam0, ro);
   } else {
     DynamicEditOptions eo;
     eo.mode =
         opt.edit_mode == PairEditMode::k2d ? EditMode::k2d : EditMode::k3d;
     eo.frame0_image = gt.front();
-    if (!scene.dynamic_mask.empty()) eo.dynamic_mask = scene.dynamic_mask;
+    if (!view.dynamic_mask.empty()) eo.dynamic_mask = view.dynamic_mask;
     eo.num_threads = ro.num_threads;
-    if (!scene.metric()) eo.box_margin = 0.0;
+    if (!view.metric) eo.box_margin = 0.0;
     DynamicEditResult edited = RenderWithDynamicEdits(
-        scene.cloud, {cam_render}, cam_from_cam0, boxes, {}, eo, ro);
+        cloud, {cam_render}, cam_from_cam0, boxes, {}, eo, ro);
     result.frames = std::move(edited.frames);
   }
   ConditionRender out;
@@ -560,6 +533,8 @@ PairMeta BuildPair(const ClipContext& ctx,
                    const std::string& tmp_dir,
                    std::map<std::string, double>* stage_seconds) {
   const BuildDatasetOptions& opt = *ctx.options;
+  if (!opt.cameras.empty())
+    return BuildRigPair(ctx, clip_id, tmp_dir, stage_seconds);
   StageTimer timer(stage_seconds);
   const DriveClip clip =
       timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });

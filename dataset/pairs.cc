@@ -44,6 +44,46 @@ std::string ReadText(const std::string& path) {
   return ReadFileText(path, uint64_t{1} << 30);
 }
 
+json IntrinsicsToJson(const PinholeCamera& c) {
+  return {{"fx", c.fx}, {"fy", c.fy},       {"cx", c.cx},
+          {"cy", c.cy}, {"width", c.width}, {"height", c.height}};
+}
+
+json PsnrToJson(const std::vector<std::optional<double>>& psnr) {
+  json a = json::array();
+  for (const auto& p : psnr) a.push_back(p ? json(*p) : json(nullptr));
+  return a;
+}
+
+json FramesToJson(const std::vector<PairFrame>& frames) {
+  json a = json::array();
+  for (const auto& f : frames)
+    a.push_back({{"sample_data_token", f.sample_data_token},
+                 {"timestamp_us", f.timestamp_us},
+                 {"filename", f.filename}});
+  return a;
+}
+
+json PairViewToJson(const PairView& v) {
+  json j;
+  j["channel"] = v.channel;
+  j["frames"] = FramesToJson(v.frames);
+  j["intrinsics"] = IntrinsicsToJson(v.intrinsics);
+  j["intrinsics"]["pixel_convention"] = "integer-index";
+  json poses = json::array();
+  for (const auto& p : v.world_from_cam) poses.push_back(PoseToJson(p));
+  j["world_from_cam"] = poses;
+  j["coverage"] = v.coverage;
+  j["psnr_static"] = PsnrToJson(v.psnr_static);
+  if (v.supported_fraction) j["supported_fraction"] = *v.supported_fraction;
+  if (v.coverage_of_supported)
+    j["coverage_of_supported"] = *v.coverage_of_supported;
+  j["points_built"] = v.points_built;
+  j["points_kept"] = v.points_kept;
+  j["files"] = v.files;
+  return j;
+}
+
 }  // namespace
 
 std::string PairMetaToJson(const PairMeta& m) {
@@ -112,6 +152,18 @@ std::string PairMetaToJson(const PairMeta& m) {
   j["quality"] = q;
   j["files"] = m.files;
   if (!m.file_sizes.empty()) j["file_sizes"] = m.file_sizes;
+  if (!m.views.empty()) {
+    json views = json::array();
+    for (const PairView& v : m.views) views.push_back(PairViewToJson(v));
+    j["views"] = views;
+    json seams = json::array();
+    for (const PairSeam& s : m.seams)
+      seams.push_back({{"camera_a", s.camera_a},
+                       {"camera_b", s.camera_b},
+                       {"overlap_pixels", s.overlap_pixels},
+                       {"agreeing_fraction", s.agreeing_fraction}});
+    j["seams"] = seams;
+  }
   return j.dump(2) + "\n";
 }
 
@@ -123,6 +175,61 @@ std::optional<double> OptionalNumber(const json& j, const char* key) {
   if (!j.contains(key) || j.at(key).is_null()) return std::nullopt;
   const double v = j.at(key).get<double>();
   if (v < 0) return std::nullopt;
+  return v;
+}
+
+std::vector<PairFrame> FramesFromJson(const json& a, const std::string& what) {
+  std::vector<PairFrame> frames;
+  for (const auto& f : a) {
+    frames.push_back({f.at("sample_data_token").get<std::string>(),
+                      internal::JsonInt(what, f.at("timestamp_us"),
+                                        "frames[].timestamp_us", 0, INT64_MAX),
+                      f.at("filename").get<std::string>()});
+  }
+  return frames;
+}
+
+PinholeCamera IntrinsicsFromJson(const json& k, const std::string& what) {
+  return PinholeCamera(
+      k.at("fx").get<double>(), k.at("fy").get<double>(),
+      k.at("cx").get<double>(), k.at("cy").get<double>(),
+      static_cast<int>(internal::JsonInt(
+          what, k.at("width"), "intrinsics.width", 1, internal::kMaxImageSide)),
+      static_cast<int>(internal::JsonInt(what, k.at("height"),
+                                         "intrinsics.height", 1,
+                                         internal::kMaxImageSide)));
+}
+
+std::vector<std::optional<double>> PsnrFromJson(const json& a) {
+  std::vector<std::optional<double>> out;
+  for (const auto& p : a)
+    out.push_back(p.is_null() ? std::nullopt
+                              : std::optional<double>(p.get<double>()));
+  return out;
+}
+
+PairView PairViewFromJson(const json& j, const std::string& what) {
+  PairView v;
+  v.channel = j.at("channel").get<std::string>();
+  const std::string where = what + ": views[" + v.channel + "]";
+  v.frames = FramesFromJson(j.at("frames"), where);
+  v.intrinsics = IntrinsicsFromJson(j.at("intrinsics"), where);
+  for (const auto& p : j.at("world_from_cam"))
+    v.world_from_cam.push_back(PoseFromJson(p, where));
+  v.coverage = j.at("coverage").get<std::vector<double>>();
+  v.psnr_static = PsnrFromJson(j.at("psnr_static"));
+  v.supported_fraction = OptionalNumber(j, "supported_fraction");
+  v.coverage_of_supported = OptionalNumber(j, "coverage_of_supported");
+  v.points_built = internal::JsonInt(where, j.at("points_built"),
+                                     "points_built", 0, INT64_MAX);
+  v.points_kept = internal::JsonInt(where, j.at("points_kept"), "points_kept",
+                                    0, INT64_MAX);
+  v.files = j.at("files").get<std::map<std::string, std::string>>();
+  GEODRIVE_CHECK_INPUT(v.world_from_cam.size() == v.frames.size() &&
+                           v.coverage.size() == v.frames.size(),
+                       where, ": ", v.frames.size(), " frames, ",
+                       v.world_from_cam.size(), " poses, ", v.coverage.size(),
+                       " coverages");
   return v;
 }
 
@@ -213,12 +320,30 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
     m.files = j.at("files").get<std::map<std::string, std::string>>();
     if (j.contains("file_sizes"))
       m.file_sizes = j.at("file_sizes").get<std::map<std::string, uint64_t>>();
+    if (j.contains("views")) {
+      for (const auto& v : j.at("views"))
+        m.views.push_back(PairViewFromJson(v, what));
+      for (const auto& sj : j.at("seams")) {
+        PairSeam seam;
+        seam.camera_a = sj.at("camera_a").get<std::string>();
+        seam.camera_b = sj.at("camera_b").get<std::string>();
+        seam.overlap_pixels =
+            internal::JsonInt(what, sj.at("overlap_pixels"),
+                              "seams[].overlap_pixels", 0, INT64_MAX);
+        seam.agreeing_fraction = sj.at("agreeing_fraction").get<double>();
+        m.seams.push_back(seam);
+      }
+    }
   } catch (const json::exception& e) {
     ThrowInputError(what, "missing or mistyped field (", e.what(), ")");
   }
   GEODRIVE_CHECK_INPUT(m.world_from_cam.size() == m.frames.size(), what, ": ",
                        m.frames.size(), " frames but ", m.world_from_cam.size(),
                        " poses");
+  for (const PairView& v : m.views)
+    GEODRIVE_CHECK_INPUT(v.frames.size() == m.frames.size(), what, ": view ",
+                         v.channel, " has ", v.frames.size(), " frames, the ",
+                         "pair ", m.frames.size());
   return m;
 }
 
@@ -267,6 +392,20 @@ PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry) {
   };
   r.gt_video = resolve("gt_frames", "gt");
   r.cond_video = resolve("cond_frames", "cond");
+  for (const PairView& v : r.meta.views) {
+    for (const char* role : {"gt", "cond"}) {
+      const auto it = v.files.find(role);
+      GEODRIVE_CHECK_INPUT(it != v.files.end(), meta_path, ": view ", v.channel,
+                           " has no files.", role);
+      const std::string& name = it->second;
+      GEODRIVE_CHECK_INPUT(IsPlainPathComponent(name), meta_path, ": view ",
+                           v.channel, " files.", role, " = '", name,
+                           "' is not a plain name inside the pair folder");
+      const std::string path = r.dir + "/" + name;
+      CheckInputFile(path);
+      (role[0] == 'g' ? r.view_gt_videos : r.view_cond_videos).push_back(path);
+    }
+  }
   return r;
 }
 
@@ -279,6 +418,7 @@ std::string ManifestEntryToJson(const ManifestEntry& e) {
             {"pose_units", e.pose_units},
             {"mean_coverage", e.mean_coverage},
             {"options_hash", e.options_hash}};
+  if (!e.cameras.empty()) j["cameras"] = e.cameras;
   return j.dump();
 }
 
@@ -296,6 +436,8 @@ ManifestEntry ManifestEntryFromJson(const std::string& line,
     e.pose_units = j.at("pose_units").get<std::string>();
     e.mean_coverage = j.at("mean_coverage").get<double>();
     e.options_hash = j.at("options_hash").get<std::string>();
+    if (j.contains("cameras"))
+      e.cameras = j.at("cameras").get<std::vector<std::string>>();
   } catch (const json::exception& ex) {
     ThrowInputError(what, "bad manifest line (", ex.what(), ")");
   }

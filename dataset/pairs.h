@@ -57,6 +57,36 @@ struct PairQuality {
   std::vector<std::optional<double>> psnr_static;
 };
 
+// Surround view: one camera of a rig pair (its videos, frames, poses and
+// quality).
+struct PairView {
+  // Camera channel, e.g. "CAM_FRONT_LEFT".
+  std::string channel;
+  std::vector<PairFrame> frames;
+  PinholeCamera intrinsics;  // at the output size
+  // Per frame, in the pair's world (the reference camera at frame 0).
+  std::vector<Rigid3d> world_from_cam;
+  // Condition coverage and static-region PSNR per frame; lidar-dense: the
+  // frame-0 supported fraction and the completed fraction of it.
+  std::vector<double> coverage;
+  std::vector<std::optional<double>> psnr_static;
+  std::optional<double> supported_fraction;
+  std::optional<double> coverage_of_supported;
+  // Points the view's scene built, and how many the rig fusion kept.
+  int64_t points_built = 0, points_kept = 0;
+  // role ("gt", "cond", "boxes") -> file name inside the pair folder.
+  std::map<std::string, std::string> files;
+};
+
+// Surround view: frame-0 rendered-depth agreement of two overlapping cameras
+// (dataset/rig.h RigSeamAgreement).
+struct PairSeam {
+  std::string camera_a, camera_b;
+  int64_t overlap_pixels = 0;
+  // Fraction of the overlap pixels whose depths agree within 1 %.
+  double agreeing_fraction = 0;
+};
+
 struct PairMeta {
   std::string clip_id;
   std::string scene_name;
@@ -91,6 +121,12 @@ struct PairMeta {
   // Size in bytes of each regular file of `files` (meta.json aside): a resume
   // rebuilds a pair whose files do not match.
   std::map<std::string, uint64_t> file_sizes;
+  // Surround view: every camera, the reference first (whose videos are also
+  // files.gt / files.cond, and whose frames and poses are the fields above);
+  // empty for a single-camera pair.
+  std::vector<PairView> views;
+  // Surround view: the seam check of every overlapping camera pair.
+  std::vector<PairSeam> seams;
 };
 
 // Serialises to / parses from the meta.json text. Parse errors throw InputError
@@ -109,6 +145,9 @@ struct ManifestEntry {
   std::string pose_units;
   double mean_coverage = 0;
   std::string options_hash;
+  // Surround view: the pair's cameras (reference first); empty for a
+  // single-camera pair (the line then has no "cameras").
+  std::vector<std::string> cameras;
 };
 std::string ManifestEntryToJson(const ManifestEntry& entry);
 ManifestEntry ManifestEntryFromJson(const std::string& line,
@@ -126,6 +165,9 @@ struct PairRecord {
   std::string dir;         // build_dir + "/" + entry.pair_dir
   std::string gt_video;    // video file or frame folder
   std::string cond_video;  // video file or frame folder
+  // Surround view: per camera (meta.views order) the GT and condition
+  // videos; empty for a single-camera pair.
+  std::vector<std::string> view_gt_videos, view_cond_videos;
 };
 // Resolves a manifest entry under `build_dir` (the folder of manifest.jsonl).
 // Throws InputError naming the file when pair_dir or a file name escapes the

@@ -4,6 +4,9 @@
 // its boxes, render the condition, write the folder. Each step is a function
 // so that BuildPair reads as the recipe.
 
+#include <time.h>
+
+#include <chrono>
 #include <map>
 #include <optional>
 #include <string>
@@ -50,6 +53,54 @@ struct ClipFrames {
 // the stage (the others wall seconds).
 inline constexpr char kCpuStagePrefix[] = "cpu:";
 
+// This thread's CPU seconds.
+inline double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+// Times each stage into a map: wall time under the stage's name and this
+// thread's CPU time under kCpuStagePrefix + name (the figure that holds on a
+// shared machine; helper threads of a stage are not counted); tags exceptions
+// with the stage.
+class StageTimer {
+ public:
+  explicit StageTimer(std::map<std::string, double>* sink) : sink_(sink) {}
+  template <typename F>
+  auto Run(const std::string& stage, F&& f) -> decltype(f()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const double cpu0 = ThreadCpuSeconds();
+    try {
+      if constexpr (std::is_void_v<decltype(f())>) {
+        f();
+        Add(stage, t0, cpu0);
+      } else {
+        auto result = f();
+        Add(stage, t0, cpu0);
+        return result;
+      }
+    } catch (const StageError&) {
+      Add(stage, t0, cpu0);
+      throw;
+    } catch (const std::exception& e) {
+      Add(stage, t0, cpu0);
+      throw StageError(stage, e.what());
+    }
+  }
+
+ private:
+  void Add(const std::string& stage,
+           std::chrono::steady_clock::time_point t0,
+           double cpu0) {
+    (*sink_)[stage] +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+            .count();
+    (*sink_)[kCpuStagePrefix + stage] += ThreadCpuSeconds() - cpu0;
+  }
+  std::map<std::string, double>* sink_;
+};
+
 // The condition frames at the output size, with their per-frame quality.
 struct ConditionRender {
   std::vector<cv::Mat> frames;
@@ -94,11 +145,31 @@ ConditionScene BuildClipScene(const DriveClip& clip,
 BoxSequences ClipVehicleBoxes(const DriveClip& clip,
                               bool metric,
                               const BuildDatasetOptions& options);
+// Same, the 3D boxes in the frame `scene_from_world` says (a rig's scene).
+BoxSequences ClipVehicleBoxes(const DriveClip& clip,
+                              bool metric,
+                              const BuildDatasetOptions& options,
+                              const Rigid3d& scene_from_world);
 // Renders the scene along its trajectory with dynamic edits from `boxes`.
 ConditionRender RenderCondition(const ConditionScene& scene,
                                 const BoxSequences& boxes,
                                 const std::vector<cv::Mat>& gt,
                                 const BuildDatasetOptions& options);
+// One camera's view of a scene: the cloud, the frame-0 camera on the source's
+// grid (resized to the output as options say), the poses scene_from_cam per
+// frame, units, the frame-0 dynamic mask.
+struct ViewToRender {
+  const PointCloud* cloud = nullptr;
+  PinholeCamera camera;
+  std::vector<Rigid3d> scene_from_cam;
+  bool metric = true;
+  cv::Mat dynamic_mask;
+};
+// RenderCondition for one view (a surround-view camera of a shared scene).
+ConditionRender RenderConditionView(const ViewToRender& view,
+                                    const BoxSequences& boxes,
+                                    const std::vector<cv::Mat>& gt,
+                                    const BuildDatasetOptions& options);
 // The pair's metadata (files and quality are filled by the writer).
 PairMeta MakePairMeta(const DriveClip& clip,
                       const ConditionScene& scene,
@@ -119,6 +190,12 @@ void WritePairFolder(const std::string& dir,
                      const BuildDatasetOptions& options,
                      PairMeta* meta);
 
+// Builds one surround-view pair (options.cameras; dataset/rig.h) into
+// `tmp_dir`; returns its meta. Throws StageError.
+PairMeta BuildRigPair(const ClipContext& ctx,
+                      const std::string& clip_id,
+                      const std::string& tmp_dir,
+                      std::map<std::string, double>* stage_seconds);
 // Builds one pair into `tmp_dir`; returns its meta. Throws StageError.
 PairMeta BuildPair(const ClipContext& ctx,
                    const std::string& clip_id,

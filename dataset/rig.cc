@@ -1,0 +1,260 @@
+// Surround view (dataset/rig.h): per-view scenes fused under the ownership
+// rule, the rig following an edited reference, the cross-view seam check.
+
+#include "dataset/rig.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "geometry/util/status.h"
+
+namespace geodrive {
+namespace {
+
+// Side of the cells (pixels) and relative depth tolerance of "j has that
+// surface itself" (the lidar source's "sees" rule uses the same).
+constexpr int kCell = 4;
+constexpr double kSameSurface = 0.05;
+// Depth agreement of the seam check.
+constexpr double kSeamTolerance = 0.01;
+
+// Moves a cloud by `b_from_a` (positions, and the footprint patch vectors by
+// its rotation).
+void TransformCloud(const Rigid3d& b_from_a, PointCloud* cloud) {
+  const Eigen::Matrix3f r = b_from_a.rotation.toRotationMatrix().cast<float>();
+  const Eigen::Vector3f t = b_from_a.translation.cast<float>();
+  for (Eigen::Vector3f& p : cloud->positions) p = r * p + t;
+  for (Eigen::Vector3f& u : cloud->footprint_u) u = r * u;
+  for (Eigen::Vector3f& v : cloud->footprint_v) v = r * v;
+}
+
+// A view's frame-0 camera as seen from the scene frame, with its nearest
+// depth per kCell x kCell cell of its own points.
+struct ViewCells {
+  PinholeCamera camera;
+  Eigen::Matrix3d rot;  // cam0_from_scene
+  Eigen::Vector3d trans;
+  int cols = 0, rows = 0;
+  std::vector<float> zmin;
+
+  // Camera coordinates of scene point p.
+  Eigen::Vector3d ToCam(const Eigen::Vector3f& p) const {
+    return rot * p.cast<double>() + trans;
+  }
+  // The cell of camera point q, or -1 outside the image (or behind).
+  int CellOf(const Eigen::Vector3d& q) const {
+    if (q.z() <= 1e-6) return -1;
+    const double u = camera.fx * q.x() / q.z() + camera.cx;
+    const double v = camera.fy * q.y() / q.z() + camera.cy;
+    if (!(u >= -0.5 && v >= -0.5 && u < camera.width - 0.5 &&
+          v < camera.height - 0.5))
+      return -1;
+    const int x = static_cast<int>(std::lround(u)) / kCell;
+    const int y = static_cast<int>(std::lround(v)) / kCell;
+    return y * cols + x;
+  }
+};
+
+ViewCells MakeCells(const PinholeCamera& camera,
+                    const Rigid3d& scene_from_cam0,
+                    const PointCloud& cloud_in_scene) {
+  ViewCells c;
+  c.camera = camera;
+  const Rigid3d cam0_from_scene = scene_from_cam0.Inverse();
+  c.rot = cam0_from_scene.rotation.toRotationMatrix();
+  c.trans = cam0_from_scene.translation;
+  c.cols = (camera.width + kCell - 1) / kCell;
+  c.rows = (camera.height + kCell - 1) / kCell;
+  c.zmin.assign(static_cast<size_t>(c.cols) * c.rows,
+                std::numeric_limits<float>::infinity());
+  for (const Eigen::Vector3f& p : cloud_in_scene.positions) {
+    const Eigen::Vector3d q = c.ToCam(p);
+    const int cell = c.CellOf(q);
+    if (cell >= 0)
+      c.zmin[cell] = std::min(c.zmin[cell], static_cast<float>(q.z()));
+  }
+  return c;
+}
+
+// cos of the angle between the camera's optical axis and the ray to q.
+double Frontality(const Eigen::Vector3d& q) {
+  const double n = q.norm();
+  return n > 0 ? q.z() / n : -1.0;
+}
+
+}  // namespace
+
+std::string RigScene::BriefReport() const {
+  std::ostringstream os;
+  os << views.size() << " cameras, " << cloud.size() << " fused points (";
+  for (size_t k = 0; k < views.size(); ++k) {
+    os << (k ? ", " : "") << views[k].channel << " " << views[k].points_kept
+       << " of " << views[k].points_built;
+  }
+  os << ")";
+  return os.str();
+}
+
+RigScene FuseRigScenes(const DriveClip& clip,
+                       std::vector<ConditionScene> views) {
+  GEODRIVE_CHECK_INPUT(static_cast<int>(views.size()) == clip.num_views(),
+                       clip.id, ": ", views.size(), " view scenes for ",
+                       clip.num_views(), " cameras");
+  RigScene rig;
+  rig.world_from_scene = clip.frames.front().world_from_cam;
+  const Rigid3d scene_from_world = rig.world_from_scene.Inverse();
+  std::vector<ViewCells> cells;
+  for (int k = 0; k < clip.num_views(); ++k) {
+    const DriveClip view_clip = clip.View(k);
+    ConditionScene& s = views[k];
+    GEODRIVE_CHECK_INPUT(s.metric(), clip.id, ": ", view_clip.channel,
+                         ": a surround-view scene needs metric geometry (the "
+                         "lidar or lidar-dense source), not ",
+                         s.units);
+    GEODRIVE_CHECK_INPUT(s.trajectory.size() == view_clip.frames.size(),
+                         clip.id, ": ", view_clip.channel, ": ",
+                         s.trajectory.size(), " poses for ",
+                         view_clip.frames.size(), " frames");
+    // The source's frame is this camera at its own frame 0.
+    const Rigid3d scene_from_view0 =
+        scene_from_world * view_clip.frames.front().world_from_cam;
+    RigView v;
+    v.channel = view_clip.channel;
+    v.camera = s.camera;
+    for (const DriveFrame& f : view_clip.frames)
+      v.scene_from_cam.push_back(scene_from_world * f.world_from_cam);
+    TransformCloud(scene_from_view0, &s.cloud);
+    v.points_built = static_cast<int64_t>(s.cloud.size());
+    cells.push_back(MakeCells(s.camera, scene_from_view0, s.cloud));
+    rig.views.push_back(std::move(v));
+  }
+  // Ownership: keep p of view k unless a more frontal view has its surface.
+  for (size_t k = 0; k < views.size(); ++k) {
+    const PointCloud& cloud = views[k].cloud;
+    std::vector<size_t> keep;
+    keep.reserve(cloud.size());
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      const Eigen::Vector3f& p = cloud.positions[i];
+      const double own = Frontality(cells[k].ToCam(p));
+      bool owned_elsewhere = false;
+      for (size_t j = 0; j < views.size() && !owned_elsewhere; ++j) {
+        if (j == k) continue;
+        const Eigen::Vector3d q = cells[j].ToCam(p);
+        if (Frontality(q) <= own) continue;
+        const int cell = cells[j].CellOf(q);
+        if (cell < 0) continue;
+        owned_elsewhere =
+            std::abs(cells[j].zmin[cell] - q.z()) <= kSameSurface * q.z();
+      }
+      if (!owned_elsewhere) keep.push_back(i);
+    }
+    rig.views[k].points_kept = static_cast<int64_t>(keep.size());
+    PointCloud kept = keep.size() == cloud.size() ? cloud : cloud.Select(keep);
+    if (k == 0) {
+      rig.cloud = std::move(kept);
+    } else {
+      rig.cloud.Append(kept);
+    }
+    views[k].cloud = PointCloud();
+    rig.views[k].source = std::move(views[k]);
+  }
+  return rig;
+}
+
+std::vector<size_t> PointsInFrontOfAny(
+    const PointCloud& cloud,
+    const std::vector<Rigid3d>& scene_from_cam,
+    double near) {
+  // Camera z of scene point p: row 2 of cam_from_scene, a . p + b.
+  std::vector<Eigen::Vector3f> a;
+  std::vector<float> b;
+  for (const Rigid3d& pose : scene_from_cam) {
+    const Rigid3d cam_from_scene = pose.Inverse();
+    const Eigen::Matrix3d r = cam_from_scene.rotation.toRotationMatrix();
+    a.push_back(r.row(2).transpose().cast<float>());
+    b.push_back(static_cast<float>(cam_from_scene.translation.z() - near));
+  }
+  std::vector<size_t> keep;
+  keep.reserve(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.positions[i];
+    for (size_t f = 0; f < a.size(); ++f) {
+      // A float margin of 1e-3 m keeps every point the renderer's own test
+      // (in float) could pass.
+      if (a[f].dot(p) + b[f] > -1e-3f) {
+        keep.push_back(i);
+        break;
+      }
+    }
+  }
+  return keep;
+}
+
+std::vector<std::vector<Rigid3d>> RigFollowEdit(
+    const RigScene& scene, const std::vector<Rigid3d>& edited_reference) {
+  GEODRIVE_CHECK_INPUT(!scene.views.empty(), "rig scene has no cameras");
+  const std::vector<Rigid3d>& reference = scene.views.front().scene_from_cam;
+  GEODRIVE_CHECK_INPUT(edited_reference.size() == reference.size(),
+                       "edited trajectory has ", edited_reference.size(),
+                       " poses for ", reference.size(), " frames");
+  std::vector<std::vector<Rigid3d>> out(scene.views.size());
+  for (size_t i = 0; i < reference.size(); ++i) {
+    const Rigid3d motion = edited_reference[i] * reference[i].Inverse();
+    for (size_t k = 0; k < scene.views.size(); ++k)
+      out[k].push_back(motion * scene.views[k].scene_from_cam.at(i));
+  }
+  return out;
+}
+
+std::vector<SeamAgreement> RigSeamAgreement(
+    const std::vector<std::string>& channels,
+    const std::vector<PinholeCamera>& cameras,
+    const std::vector<Rigid3d>& scene_from_cam,
+    const std::vector<cv::Mat>& depth) {
+  const size_t n = channels.size();
+  GEODRIVE_CHECK_INPUT(
+      cameras.size() == n && scene_from_cam.size() == n && depth.size() == n,
+      "seam check: ", n, " channels, ", cameras.size(), " cameras, ",
+      scene_from_cam.size(), " poses, ", depth.size(), " depth images");
+  // Overlap and agreement of the pixels of a seen from b.
+  auto one_way = [&](size_t a, size_t b, SeamAgreement* s) {
+    const Rigid3d b_from_a = scene_from_cam[b].Inverse() * scene_from_cam[a];
+    const PinholeCamera& ca = cameras[a];
+    const PinholeCamera& cb = cameras[b];
+    for (int y = 0; y < depth[a].rows; ++y) {
+      const float* da = depth[a].ptr<float>(y);
+      for (int x = 0; x < depth[a].cols; ++x) {
+        if (!(da[x] > 0)) continue;
+        const Eigen::Vector3d q =
+            b_from_a * ca.Unproject(Eigen::Vector2d(x, y), da[x]);
+        if (q.z() <= 1e-6) continue;
+        const Eigen::Vector2d uv = cb.Project(q);
+        const int u = static_cast<int>(std::lround(uv.x()));
+        const int v = static_cast<int>(std::lround(uv.y()));
+        if (u < 0 || v < 0 || u >= depth[b].cols || v >= depth[b].rows)
+          continue;
+        const float db = depth[b].at<float>(v, u);
+        if (!(db > 0)) continue;
+        ++s->overlap_pixels;
+        if (std::abs(db - q.z()) <= kSeamTolerance * q.z())
+          ++s->agreeing_pixels;
+      }
+    }
+  };
+  std::vector<SeamAgreement> out;
+  for (size_t a = 0; a < n; ++a) {
+    for (size_t b = a + 1; b < n; ++b) {
+      SeamAgreement s;
+      s.camera_a = channels[a];
+      s.camera_b = channels[b];
+      one_way(a, b, &s);
+      one_way(b, a, &s);
+      if (s.overlap_pixels > 0) out.push_back(s);
+    }
+  }
+  return out;
+}
+
+}  // namespace geodrive

@@ -1,0 +1,276 @@
+// Surround-view pairs (build-dataset --cameras; dataset/rig.h): one scene per
+// clip, rendered into every camera of the rig.
+//
+// Per clip: the clip with every selected camera; per camera its frames
+// (stage gt) and its scene from the run's scene source (stage geometry; the
+// LiDAR sweeps are read once and shared by the cameras); the views fused into
+// one cloud (stage fuse); per camera its vehicle boxes in the shared scene
+// frame (stage boxes), its condition along its own poses (stage render); the
+// frame-0 seam check (stage seams); the folder (stage encode):
+//
+//   gt_<CAM>.mp4, cond_<CAM>.mp4, boxes_<CAM>.json   per camera
+//   gt.mp4, cond.mp4, boxes.json                      the reference camera's
+//   first_frame.png                                   reference frame 0
+//   preview.png      frame 0 of every camera in the rig's layout (front row
+//                    FL F FR, back row BL B BR), GT above condition
+//   meta.json        the reference camera's fields, plus views[] and seams[]
+
+#include <algorithm>
+#include <filesystem>
+#include <mutex>
+#include <opencv2/imgproc.hpp>
+
+#include "dataset/drive_dataset.h"
+#include "dataset/internal/pair_builder.h"
+#include "dataset/internal/pair_png.h"
+#include "dataset/rig.h"
+#include "geometry/util/files.h"
+#include "geometry/util/names.h"
+#include "geometry/util/status.h"
+#include "render/presets.h"
+#include "render/renderer.h"
+#include "render/video/h264.h"
+
+namespace geodrive {
+namespace internal {
+namespace {
+
+// The scene's sweeps for every camera of the rig, read once: Load() memoised.
+// Thread-safe for concurrent const calls, as the interface requires.
+class SharedSweeps : public LidarProvider {
+ public:
+  explicit SharedSweeps(std::shared_ptr<const LidarProvider> base)
+      : base_(std::move(base)), cache_(base_->Sweeps().size()) {}
+  const std::vector<LidarSweepInfo>& Sweeps() const override {
+    return base_->Sweeps();
+  }
+  PointCloud Load(size_t index) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::shared_ptr<const PointCloud>& slot = cache_.at(index);
+    if (!slot) slot = std::make_shared<const PointCloud>(base_->Load(index));
+    return *slot;
+  }
+  std::vector<ClipBox> Boxes(size_t index) const override {
+    return base_->Boxes(index);
+  }
+
+ private:
+  std::shared_ptr<const LidarProvider> base_;
+  mutable std::mutex mutex_;
+  mutable std::vector<std::shared_ptr<const PointCloud>> cache_;
+};
+
+// Everything one camera of the pair needs between the stages.
+struct ViewWork {
+  DriveClip clip;
+  ClipFrames frames;
+  BoxSequences boxes;
+  ConditionRender cond;
+  std::string file_stem;  // the channel as a path component
+};
+
+// Frame 0 of every camera in the rig's layout: GT above condition, labelled,
+// 320 px wide tiles; cameras outside NuscenesRigLayout() in rows below.
+cv::Mat RigMosaic(const std::vector<ViewWork>& views) {
+  const int tile_w = 320;
+  const auto tile_of = [&](const ViewWork& v) {
+    const cv::Mat& gt = v.frames.gt.front();
+    const int tile_h = std::max(1, gt.rows * tile_w / std::max(1, gt.cols));
+    cv::Mat a, b, tile;
+    cv::resize(gt, a, cv::Size(tile_w, tile_h), 0, 0, cv::INTER_AREA);
+    cv::resize(v.cond.frames.front(), b, cv::Size(tile_w, tile_h), 0, 0,
+               cv::INTER_AREA);
+    cv::vconcat(a, b, tile);
+    cv::putText(tile, v.clip.channel, cv::Point(6, 18),
+                cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(255, 255, 255), 1,
+                cv::LINE_AA);
+    return tile;
+  };
+  const std::vector<std::string>& layout = NuscenesRigLayout();
+  std::vector<int> slot(views.size());
+  int next_free = static_cast<int>(layout.size());
+  for (size_t k = 0; k < views.size(); ++k) {
+    const auto it =
+        std::find(layout.begin(), layout.end(), views[k].clip.channel);
+    slot[k] = it != layout.end() ? static_cast<int>(it - layout.begin())
+                                 : next_free++;
+  }
+  const int rows = (*std::max_element(slot.begin(), slot.end())) / 3 + 1;
+  const cv::Mat first = tile_of(views.front());
+  cv::Mat mosaic(first.rows * rows, tile_w * 3, CV_8UC3, cv::Scalar::all(0));
+  for (size_t k = 0; k < views.size(); ++k) {
+    cv::Mat tile = k == 0 ? first : tile_of(views[k]);
+    if (tile.rows != first.rows)
+      cv::resize(tile, tile, first.size(), 0, 0, cv::INTER_AREA);
+    tile.copyTo(
+        mosaic(cv::Rect((slot[k] % 3) * tile_w, (slot[k] / 3) * first.rows,
+                        tile_w, first.rows)));
+  }
+  return mosaic;
+}
+
+// Frame-0 depth of every camera (the static scene, output size) and the
+// seam check of every overlapping pair.
+std::vector<PairSeam> SeamCheck(const RigScene& rig,
+                                const BuildDatasetOptions& opt) {
+  std::vector<std::string> channels;
+  std::vector<PinholeCamera> cameras;
+  std::vector<Rigid3d> poses;
+  std::vector<cv::Mat> depth;
+  RenderOptions ro = PresetRenderOptions(RenderPreset::kPaper);
+  ro.width = opt.width;
+  ro.height = opt.height;
+  ro.radius_px = opt.splat_radius_px;
+  ro.num_threads = opt.threads > 1 ? 1 : 0;
+  for (const RigView& v : rig.views) {
+    const PinholeCamera cam =
+        v.source.CameraAt(opt.width, opt.height, opt.resize_mode);
+    const RenderResult r = RenderFrames(
+        rig.cloud, {cam}, {v.scene_from_cam.front().Inverse()}, ro);
+    channels.push_back(v.channel);
+    cameras.push_back(cam);
+    poses.push_back(v.scene_from_cam.front());
+    depth.push_back(r.frames.front().depth);
+  }
+  std::vector<PairSeam> out;
+  for (const SeamAgreement& s :
+       RigSeamAgreement(channels, cameras, poses, depth))
+    out.push_back({s.camera_a, s.camera_b, s.overlap_pixels, s.fraction()});
+  return out;
+}
+
+PairView MakePairView(const ViewWork& w,
+                      const RigView& rv,
+                      const BuildDatasetOptions& opt) {
+  PairView v;
+  v.channel = rv.channel;
+  for (const DriveFrame& f : w.clip.frames)
+    v.frames.push_back({f.frame_id, f.timestamp_us, f.relative_path});
+  v.intrinsics = rv.source.CameraAt(opt.width, opt.height, opt.resize_mode);
+  v.world_from_cam = rv.scene_from_cam;
+  v.coverage = w.cond.coverage;
+  v.psnr_static = w.cond.psnr_static;
+  if (rv.source.completion) {
+    v.supported_fraction = rv.source.completion->supported_fraction;
+    v.coverage_of_supported = rv.source.completion->coverage_of_supported;
+  }
+  v.points_built = rv.points_built;
+  v.points_kept = rv.points_kept;
+  v.files = {{"gt", "gt_" + w.file_stem + ".mp4"},
+             {"cond", "cond_" + w.file_stem + ".mp4"},
+             {"boxes", "boxes_" + w.file_stem + ".json"}};
+  return v;
+}
+
+void WriteRigPairFolder(const std::string& dir,
+                        const std::vector<ViewWork>& views,
+                        const BuildDatasetOptions& opt,
+                        PairMeta* meta) {
+  H264Options vo;
+  vo.fps = opt.fps;
+  vo.preset = opt.video_preset;
+  vo.crf = opt.video_crf;
+  for (size_t k = 0; k < views.size(); ++k) {
+    const ViewWork& w = views[k];
+    const PairView& pv = meta->views[k];
+    WriteH264Mp4(dir + "/" + pv.files.at("gt"), w.frames.gt, vo);
+    WriteH264Mp4(dir + "/" + pv.files.at("cond"), w.cond.frames, vo);
+    WriteBoxesJson(dir + "/" + pv.files.at("boxes"), w.boxes);
+    for (const auto& [role, name] : pv.files)
+      meta->files[role + ":" + pv.channel] = name;
+  }
+  // The reference camera under the single-camera names too: every reader of
+  // single-camera pairs reads a rig pair's reference view.
+  namespace fs = std::filesystem;
+  for (const char* role : {"gt", "cond", "boxes"}) {
+    const std::string name = meta->views.front().files.at(role);
+    const std::string plain =
+        std::string(role) + (role[0] == 'b' ? ".json" : ".mp4");
+    // A second name of the same file (a copy where links are refused).
+    std::error_code ec;
+    fs::remove(dir + "/" + plain, ec);
+    fs::create_hard_link(dir + "/" + name, dir + "/" + plain, ec);
+    if (ec)
+      fs::copy_file(dir + "/" + name, dir + "/" + plain,
+                    fs::copy_options::overwrite_existing);
+    meta->files[role] = plain;
+  }
+  WritePairPng(dir + "/first_frame.png", views.front().frames.gt.front());
+  WritePairPng(dir + "/preview.png", RigMosaic(views));
+  meta->files["first_frame"] = "first_frame.png";
+  meta->files["preview"] = "preview.png";
+  meta->files["meta"] = "meta.json";
+  for (const auto& [role, name] : meta->files) {
+    std::error_code ec;
+    if (name != "meta.json" && fs::is_regular_file(dir + "/" + name, ec))
+      meta->file_sizes[name] = fs::file_size(dir + "/" + name, ec);
+  }
+  WriteFileAtomic(dir + "/meta.json", PairMetaToJson(*meta));
+}
+
+}  // namespace
+
+PairMeta BuildRigPair(const ClipContext& ctx,
+                      const std::string& clip_id,
+                      const std::string& tmp_dir,
+                      std::map<std::string, double>* stage_seconds) {
+  const BuildDatasetOptions& opt = *ctx.options;
+  StageTimer timer(stage_seconds);
+  DriveClip clip =
+      timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
+  GEODRIVE_CHECK_INPUT(!clip.rig.empty(), clip_id,
+                       ": the dataset gave a single-camera clip for --cameras");
+  if (clip.lidar) clip.lidar = std::make_shared<SharedSweeps>(clip.lidar);
+  const int full_size_images =
+      CreateSceneSource(opt.SceneSourceName())->Traits().full_size_images;
+  std::vector<ViewWork> views(clip.num_views());
+  std::vector<ConditionScene> scenes;
+  for (int k = 0; k < clip.num_views(); ++k) {
+    ViewWork& w = views[k];
+    w.clip = clip.View(k);
+    w.file_stem = PathComponentFromName(w.clip.channel, "camera channel");
+    w.frames = timer.Run(
+        "gt", [&] { return ReadClipFrames(w.clip, opt, full_size_images); });
+    scenes.push_back(timer.Run("geometry", [&] {
+      return BuildClipScene(w.clip, w.frames.full, "", opt);
+    }));
+  }
+  const RigScene rig =
+      timer.Run("fuse", [&] { return FuseRigScenes(clip, std::move(scenes)); });
+  const Rigid3d scene_from_world = rig.world_from_scene.Inverse();
+  for (int k = 0; k < clip.num_views(); ++k) {
+    ViewWork& w = views[k];
+    const RigView& rv = rig.views[k];
+    w.boxes = timer.Run("boxes", [&] {
+      return ClipVehicleBoxes(w.clip, true, opt, scene_from_world);
+    });
+    // The points in front of this camera in some frame: the others cannot
+    // be drawn, and the dynamic editor segments fewer points.
+    const PointCloud visible = timer.Run("render", [&] {
+      return rig.cloud.Select(PointsInFrontOfAny(
+          rig.cloud, rv.scene_from_cam, PresetRenderOptions(opt.preset).near));
+    });
+    ViewToRender view;
+    view.cloud = &visible;
+    view.camera = rv.source.camera;
+    view.scene_from_cam = rv.scene_from_cam;
+    view.metric = true;
+    view.dynamic_mask = rv.source.dynamic_mask;
+    w.cond = timer.Run("render", [&] {
+      return RenderConditionView(view, w.boxes, w.frames.gt, opt);
+    });
+  }
+  // The reference camera's fields as a single-camera pair has them.
+  const ConditionScene& reference = rig.views.front().source;
+  PairMeta meta = MakePairMeta(views.front().clip, reference, opt);
+  meta.quality.coverage = views.front().cond.coverage;
+  meta.quality.psnr_static = views.front().cond.psnr_static;
+  for (int k = 0; k < clip.num_views(); ++k)
+    meta.views.push_back(MakePairView(views[k], rig.views[k], opt));
+  meta.seams = timer.Run("seams", [&] { return SeamCheck(rig, opt); });
+  timer.Run("encode", [&] { WriteRigPairFolder(tmp_dir, views, opt, &meta); });
+  return meta;
+}
+
+}  // namespace internal
+}  // namespace geodrive
