@@ -61,7 +61,7 @@ int Run(Args& a) {
   BuildDatasetOptions& o = a.options;
   ParseShard(a.shard, &o.shard_index, &o.shard_count);
   if (!a.cameras.empty())
-    o.cameras = ParseCameraList(a.cameras, "CAM_FRONT", "--cameras");
+    o.cameras = ParseCameraList(a.cameras, "", "--cameras");
   ParseSizeHxW(a.size, "--size", &o.height, &o.width);
   // The lidar-dense frame-0 depth's memory, from the option alone (a 16:9
   // camera, nuScenes' CAM_FRONT); each clip checks its own camera again.
@@ -221,11 +221,12 @@ void AddPairOptions(CLI::App& app, Args& a) {
       ->default_str("all");
   app.add_option(
       "--cameras", a.cameras,
-      "Surround view: all, or CAM_FRONT,CAM_FRONT_LEFT,... (CAM_FRONT "
-      "included). One scene per clip (lidar or lidar-dense) rendered into "
-      "every camera, each along its own poses; per camera gt_<CAM>.mp4 and "
-      "cond_<CAM>.mp4, a rig-layout preview.png, meta.json views and seams "
-      "(docs/how-to/surround-view.md). Default: CAM_FRONT pairs");
+      "Surround view: all (CAM_FRONT first), or CAM_A,CAM_B,... (the first "
+      "is the reference: its frames make the clips). One scene per clip "
+      "(lidar or lidar-dense) rendered into every camera, each along its own "
+      "poses; per camera gt_<CAM>.mp4 and cond_<CAM>.mp4, a rig-layout "
+      "preview.png, meta.json views and seams (docs/how-to/surround-view.md). "
+      "Default: CAM_FRONT pairs");
   app.add_option("--size", a.size, "Output HxW")->capture_default_str();
   app.add_option("--resize-mode", o.resize_mode,
                  "resize (plain, GeoDrive training) or center-crop (GeoDrive "

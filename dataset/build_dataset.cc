@@ -690,6 +690,9 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   dso.clip_stride = opt.clip_stride;
   dso.frames = opt.frames;
   dso.cameras = opt.cameras;
+  // The first camera listed is the reference ("all": CAM_FRONT).
+  if (!opt.cameras.empty() && opt.cameras.front() != "all")
+    dso.channel = opt.cameras.front();
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();

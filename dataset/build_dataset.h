@@ -74,8 +74,9 @@ struct BuildDatasetOptions {
   int clip_frames = 25;
   int clip_stride = 6;
   ClipFrameSource frames = ClipFrameSource::kAll;
-  // Surround view (dataset/rig.h): the cameras of every pair, CAM_FRONT (the
-  // reference) first, or {"all"}; empty = CAM_FRONT pairs. One scene per
+  // Surround view (dataset/rig.h): the cameras of every pair, the reference
+  // (whose frames make the clips) first, or {"all"} (CAM_FRONT the
+  // reference); empty = CAM_FRONT pairs. One scene per
   // clip rendered into every camera; per camera gt_<CAM>.mp4 and
   // cond_<CAM>.mp4, a rig-layout preview.png, meta.json views and seams.
   std::vector<std::string> cameras;

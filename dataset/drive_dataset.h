@@ -55,8 +55,9 @@ constexpr int64_t kMaxRigTimeGapUs = 60000;
 // to right, then the back row left to right (as the mosaic shows them).
 const std::vector<std::string>& NuscenesRigLayout();
 // "all" or "A,B,..." -> the camera list of DriveDatasetOptions::cameras
-// (trimmed, no duplicates; `reference` moved first). Throws InputError naming
-// `option` for an empty name or a duplicate.
+// (trimmed, no duplicates; `reference`, when not empty, must be listed and is
+// moved first). Throws InputError naming `option` for an empty name, a
+// duplicate or a missing reference.
 std::vector<std::string> ParseCameraList(const std::string& text,
                                          const std::string& reference,
                                          const std::string& option);

@@ -335,6 +335,7 @@ std::vector<std::string> ParseCameraList(const std::string& text,
     names.push_back(std::move(name));
     start = end + 1;
   }
+  if (reference.empty()) return names;
   const auto ref = std::find(names.begin(), names.end(), reference);
   GEODRIVE_CHECK_INPUT(ref != names.end(), option, " '", text,
                        "': the list must hold the reference camera ",

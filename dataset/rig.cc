@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "geometry/util/status.h"
+#include "render/footprint.h"
 
 namespace geodrive {
 namespace {
@@ -125,6 +126,11 @@ RigScene FuseRigScenes(const DriveClip& clip,
     v.camera = s.camera;
     for (const DriveFrame& f : view_clip.frames)
       v.scene_from_cam.push_back(scene_from_world * f.world_from_cam);
+    // Footprints from the camera that captured the points (this view at its
+    // frame 0), before the move: every camera then draws a point over its
+    // capture pixel, and no render recomputes them from its own frame 0.
+    if (!s.cloud.HasFootprints() && s.has_camera)
+      SetCaptureFootprints(s.camera, Rigid3d(), &s.cloud);
     TransformCloud(scene_from_view0, &s.cloud);
     v.points_built = static_cast<int64_t>(s.cloud.size());
     cells.push_back(MakeCells(s.camera, scene_from_view0, s.cloud));
@@ -163,27 +169,42 @@ RigScene FuseRigScenes(const DriveClip& clip,
   return rig;
 }
 
-std::vector<size_t> PointsInFrontOfAny(
+std::vector<size_t> PointsInViewOfAny(
     const PointCloud& cloud,
+    const PinholeCamera& camera,
     const std::vector<Rigid3d>& scene_from_cam,
-    double near) {
-  // Camera z of scene point p: row 2 of cam_from_scene, a . p + b.
-  std::vector<Eigen::Vector3f> a;
-  std::vector<float> b;
+    double near,
+    double far,
+    double margin_px) {
+  // Rows of K * cam_from_scene in float, per pose: u*z, v*z and z are affine
+  // in the point. Float margins (1e-3 m in depth, one pixel more) keep every
+  // point the renderer's own float test could pass.
+  struct Pose {
+    Eigen::Matrix<float, 3, 4> m;
+  };
+  std::vector<Pose> poses;
   for (const Rigid3d& pose : scene_from_cam) {
-    const Rigid3d cam_from_scene = pose.Inverse();
-    const Eigen::Matrix3d r = cam_from_scene.rotation.toRotationMatrix();
-    a.push_back(r.row(2).transpose().cast<float>());
-    b.push_back(static_cast<float>(cam_from_scene.translation.z() - near));
+    Eigen::Matrix<double, 3, 4> p = pose.Inverse().ToMatrix3x4();
+    Eigen::Matrix3d k;
+    k << camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1;
+    poses.push_back({(k * p).cast<float>()});
   }
+  const float lo_z = static_cast<float>(near) - 1e-3f;
+  const float hi_z = static_cast<float>(far) + 1e-3f;
+  const float m = static_cast<float>(margin_px) + 1.0f;
+  const float lo_u = -0.5f - m, hi_u = camera.width - 0.5f + m;
+  const float lo_v = -0.5f - m, hi_v = camera.height - 0.5f + m;
   std::vector<size_t> keep;
   keep.reserve(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3f& p = cloud.positions[i];
-    for (size_t f = 0; f < a.size(); ++f) {
-      // A float margin of 1e-3 m keeps every point the renderer's own test
-      // (in float) could pass.
-      if (a[f].dot(p) + b[f] > -1e-3f) {
+    const Eigen::Vector4f p(cloud.positions[i].x(), cloud.positions[i].y(),
+                            cloud.positions[i].z(), 1.0f);
+    for (const Pose& pose : poses) {
+      const float z = pose.m.row(2).dot(p);
+      if (!(z > lo_z && z < hi_z)) continue;
+      const float u = pose.m.row(0).dot(p) / z;
+      const float v = pose.m.row(1).dot(p) / z;
+      if (u > lo_u && u < hi_u && v > lo_v && v < hi_v) {
         keep.push_back(i);
         break;
       }

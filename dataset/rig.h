@@ -18,6 +18,11 @@
 // (another camera's view of it is occluded, or has no depth there) keeps that
 // camera's points.
 //
+// Footprints: each view's points get their capture footprints from that
+// view's frame-0 camera (render/footprint.h) before the fusion, so the
+// footprint preset draws every point over the pixel that captured it,
+// whichever camera renders it.
+//
 // Poses: view k's camera at frame i is scene_from_cam[k][i] = scene_from_world
 // * world_from_cam of that camera's own frame (its own timestamp and ego pose).
 // An edited reference trajectory moves the whole rig rigidly (RigFollowEdit).
@@ -70,13 +75,19 @@ struct RigScene {
 RigScene FuseRigScenes(const DriveClip& clip,
                        std::vector<ConditionScene> views);
 
-// Indices of the points in front of the camera (camera z > near) in at least
-// one of the poses: the only points a z-buffer render of those poses can
-// draw (a camera renders its view of the shared cloud from this subset).
-std::vector<size_t> PointsInFrontOfAny(
+// Indices of the points a z-buffer render of `camera` at the poses can draw:
+// in some pose near < z < far and the projection within `margin_px` of the
+// image (margin_px at least the largest splat half-extent: radius_px, or
+// max_footprint_magnification / 2 for footprint splats). Drawing only these
+// gives the same frames as drawing the whole cloud; a camera renders its
+// view of the shared cloud from this subset.
+std::vector<size_t> PointsInViewOfAny(
     const PointCloud& cloud,
+    const PinholeCamera& camera,
     const std::vector<Rigid3d>& scene_from_cam,
-    double near);
+    double near,
+    double far,
+    double margin_px);
 
 // The rig's poses along an edited reference trajectory: per frame the world
 // side motion D(i) = edited_reference[i] * inverse(reference[i]) of the

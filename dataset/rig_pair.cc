@@ -69,6 +69,35 @@ struct ViewWork {
   std::string file_stem;  // the channel as a path component
 };
 
+// `drawn` (sorted indices) with every point inside a vehicle box at frame 0
+// (grown 1 m): the 3D editor moves those along their boxes, into view or
+// out of it.
+std::vector<size_t> WithPointsInBoxes(const PointCloud& cloud,
+                                      const BoxSequences& boxes,
+                                      std::vector<size_t> drawn) {
+  std::vector<Box3d> frame0;
+  for (const BoxSequence& seq : boxes.instances)
+    if (const BoxFrame* f = seq.Find(0); f && f->box_3d)
+      frame0.push_back(*f->box_3d);
+  if (frame0.empty()) return drawn;
+  std::vector<char> keep(cloud.size(), 0);
+  for (size_t i : drawn) keep[i] = 1;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (keep[i]) continue;
+    const Eigen::Vector3d p = cloud.positions[i].cast<double>();
+    for (const Box3d& b : frame0) {
+      if (b.Contains(p, 1.0)) {
+        keep[i] = 1;
+        break;
+      }
+    }
+  }
+  drawn.clear();
+  for (size_t i = 0; i < cloud.size(); ++i)
+    if (keep[i]) drawn.push_back(i);
+  return drawn;
+}
+
 // Frame 0 of every camera in the rig's layout: GT above condition, labelled,
 // 320 px wide tiles; cameras outside NuscenesRigLayout() in rows below.
 cv::Mat RigMosaic(const std::vector<ViewWork>& views) {
@@ -125,8 +154,11 @@ std::vector<PairSeam> SeamCheck(const RigScene& rig,
   for (const RigView& v : rig.views) {
     const PinholeCamera cam =
         v.source.CameraAt(opt.width, opt.height, opt.resize_mode);
-    const RenderResult r = RenderFrames(
-        rig.cloud, {cam}, {v.scene_from_cam.front().Inverse()}, ro);
+    const PointCloud drawn = rig.cloud.Select(
+        PointsInViewOfAny(rig.cloud, cam, {v.scene_from_cam.front()}, ro.near,
+                          ro.far, ro.radius_px));
+    const RenderResult r =
+        RenderFrames(drawn, {cam}, {v.scene_from_cam.front().Inverse()}, ro);
     channels.push_back(v.channel);
     cameras.push_back(cam);
     poses.push_back(v.scene_from_cam.front());
@@ -244,14 +276,26 @@ PairMeta BuildRigPair(const ClipContext& ctx,
     w.boxes = timer.Run("boxes", [&] {
       return ClipVehicleBoxes(w.clip, true, opt, scene_from_world);
     });
-    // The points in front of this camera in some frame: the others cannot
-    // be drawn, and the dynamic editor segments fewer points.
-    const PointCloud visible = timer.Run("render", [&] {
-      return rig.cloud.Select(PointsInFrontOfAny(
-          rig.cloud, rv.scene_from_cam, PresetRenderOptions(opt.preset).near));
-    });
+    // The points this camera can draw in some frame (the others cost the
+    // renderer and the dynamic editor time for nothing); the z-buffer
+    // presets only (a soft splat's reach is in NDC).
+    PointCloud visible;
+    const RenderOptions ro = PresetRenderOptions(opt.preset);
+    if (ro.mode == RenderMode::kZBuffer) {
+      timer.Run("render", [&] {
+        const double margin =
+            std::max(opt.splat_radius_px, ro.max_footprint_magnification / 2);
+        std::vector<size_t> drawn = PointsInViewOfAny(
+            rig.cloud,
+            rv.source.CameraAt(opt.width, opt.height, opt.resize_mode),
+            rv.scene_from_cam, ro.near, ro.far, margin);
+        if (opt.edit_mode == PairEditMode::k3d)
+          drawn = WithPointsInBoxes(rig.cloud, w.boxes, std::move(drawn));
+        visible = rig.cloud.Select(drawn);
+      });
+    }
     ViewToRender view;
-    view.cloud = &visible;
+    view.cloud = ro.mode == RenderMode::kZBuffer ? &visible : &rig.cloud;
     view.camera = rv.source.camera;
     view.scene_from_cam = rv.scene_from_cam;
     view.metric = true;

@@ -165,9 +165,9 @@ TEST_F(RigSynthetic, EveryCameraAgainstTheTruth) {
   }
 }
 
-// The camera's view of the cloud drawn from PointsInFrontOfAny's subset is
+// The camera's view of the cloud drawn from PointsInViewOfAny's subset is
 // the view drawn from the whole cloud, byte for byte.
-TEST_F(RigSynthetic, RenderingTheFrontSubsetChangesNothing) {
+TEST_F(RigSynthetic, RenderingTheViewSubsetChangesNothing) {
   const DriveClip clip = LoadRigClip();
   const RigScene rig = BuildRig(clip);
   const RigView& back = rig.views[4];  // CAM_BACK: half the cloud is behind
@@ -179,8 +179,9 @@ TEST_F(RigSynthetic, RenderingTheFrontSubsetChangesNothing) {
   std::vector<Rigid3d> poses;
   for (const Rigid3d& p : back.scene_from_cam) poses.push_back(p.Inverse());
   const std::vector<size_t> front =
-      PointsInFrontOfAny(rig.cloud, back.scene_from_cam, ro.near);
-  std::printf("%s: %zu of %zu points in front in some frame\n",
+      PointsInViewOfAny(rig.cloud, cam, back.scene_from_cam, ro.near, ro.far,
+                        ro.max_footprint_magnification / 2);
+  std::printf("%s: %zu of %zu points in view in some frame\n",
               back.channel.c_str(), front.size(), rig.cloud.size());
   EXPECT_LT(front.size(), rig.cloud.size());
   const RenderResult all = RenderFrames(rig.cloud, {cam}, poses, ro);
