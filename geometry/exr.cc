@@ -74,8 +74,8 @@ int FixedAttributeSize(const std::string& type) {
 }
 
 // One part's data window against the limits, and what it adds to the
-// chunk table (its chunkCount, tiles or scan-line blocks) and to the pixel
-// bytes.
+// chunk table (its tiles or scan-line blocks, or its chunkCount if that is
+// more) and to the pixel bytes.
 void CheckExrPart(const std::string& path,
                   const ExrPart& p,
                   uint32_t flags,
@@ -91,20 +91,73 @@ void CheckExrPart(const std::string& path,
       " is outside the reader's limit (1..", SizeLimits::kMaxImageSide,
       " a side, ", SizeLimits::kMaxImagePixels, " pixels)");
   int64_t chunks = 0;
-  if (p.chunk_count >= 0) {
-    chunks = p.chunk_count;
-  } else if (p.tiled || (flags & 0x200)) {
-    GEODRIVE_CHECK_INPUT(p.tile_w >= 1 && p.tile_h >= 1, path,
-                         ": EXR tiles of ", p.tile_w, "x", p.tile_h);
+  if (p.tiled || (flags & 0x200)) {
+    GEODRIVE_CHECK_INPUT(p.tile_w >= 1 && p.tile_h >= 1 &&
+                             p.tile_w <= SizeLimits::kMaxImageSide &&
+                             p.tile_h <= SizeLimits::kMaxImageSide,
+                         path, ": EXR tiles of ", p.tile_w, "x", p.tile_h,
+                         " are outside the reader's limit (1..",
+                         SizeLimits::kMaxImageSide, " a side)");
     chunks = ((p.width + p.tile_w - 1) / p.tile_w) *
              ((p.height + p.tile_h - 1) / p.tile_h);
   } else {
     const int lines = LinesPerChunk(p.compression);
     chunks = (p.height + lines - 1) / lines;
   }
+  chunks = std::max(chunks, p.chunk_count);
   *min_chunks += static_cast<uint64_t>(std::max<int64_t>(chunks, 0));
   *pixel_bytes += static_cast<uint64_t>(p.width * p.height) *
                   static_cast<uint64_t>(p.bytes_per_pixel);
+}
+
+// `n` rounded up to a multiple of `chunk` (>= 1).
+int64_t RoundUp(int64_t n, int64_t chunk) {
+  return (n + chunk - 1) / chunk * chunk;
+}
+
+// OpenEXR sizes its buffers by the chunk, not by the data window, before it
+// reads any chunk: a tile's buffer is bytes a pixel x tile width x tile
+// height (TiledInputFile), a scan-line block's the window's width x the
+// compression's lines per block (ScanLineInputFile), InputFile caches a row
+// of tiles (window width x tile height, per channel read), and the
+// decompressor holds one or two more of these. A tile or block larger than
+// the window costs its whole size, which the window's bytes do not bound
+// (tiles of 1x469762048 over a 4x4 window: 1.88 GB from a 369-byte file).
+// So the window rounded up to whole chunks, at the part's bytes a pixel, is
+// held to the pixel data's ratio: at most SizeLimits::kMaxCompressionRatio
+// times the `after_header` bytes, past SizeLimits::kRatioFreeBytes. Tile
+// sides are checked by CheckExrPart.
+void CheckExrChunkBuffers(const std::string& path,
+                          const ExrPart& p,
+                          uint32_t flags,
+                          uint64_t after_header) {
+  const auto check = [&](int64_t w, int64_t h, const std::string& chunks) {
+    const uint64_t bytes = SaturatingMul(
+        SaturatingMul(static_cast<uint64_t>(w), static_cast<uint64_t>(h)),
+        static_cast<uint64_t>(p.bytes_per_pixel));
+    const uint64_t ratio = SizeLimits::kMaxCompressionRatio;
+    if (bytes <= SizeLimits::kRatioFreeBytes ||
+        bytes <= SaturatingMul(after_header, ratio)) {
+      return;
+    }
+    ThrowInputError(path, "EXR data window ", p.width, "x", p.height,
+                    " in whole ", chunks, " is ", w, "x", h, " pixels, ", bytes,
+                    " bytes at ", p.bytes_per_pixel,
+                    " bytes a pixel (OpenEXR's buffers), over ", ratio,
+                    " times the ", after_header, " bytes after the header");
+  };
+  const bool multipart = flags & 0x1000;
+  if (p.tiled) {  // a multi-part file's scan-line part may declare tiles
+    check(RoundUp(p.width, p.tile_w), RoundUp(p.height, p.tile_h),
+          "tiles of " + std::to_string(p.tile_w) + "x" +
+              std::to_string(p.tile_h));
+  }
+  if (multipart || !(flags & 0x200)) {
+    const int lines = LinesPerChunk(p.compression);
+    check(p.width, RoundUp(p.height, lines),
+          "blocks of " + std::to_string(lines) + " scan lines (compression " +
+              std::to_string(p.compression) + ")");
+  }
 }
 
 // Parses the header (every part's attributes) from `head`, the file's first
@@ -231,13 +284,18 @@ void CheckExrHeader(const std::string& path) {
   CheckDeclaredSize(path, "the EXR header's chunk table",
                     SaturatingMul(min_chunks, 16), after_header,
                     std::numeric_limits<uint64_t>::max());
-  if (deep) return;  // sample counts vary per pixel
-  if (uncompressed) {
-    CheckDeclaredSize(path, "the EXR data window", pixel_bytes, after_header,
-                      std::numeric_limits<uint64_t>::max());
-  } else {
-    CheckCompressionRatio(path, "the EXR data window", pixel_bytes,
-                          after_header);
+  if (!deep) {  // a deep file's sample counts vary per pixel
+    if (uncompressed) {
+      CheckDeclaredSize(path, "the EXR data window", pixel_bytes, after_header,
+                        std::numeric_limits<uint64_t>::max());
+    } else {
+      CheckCompressionRatio(path, "the EXR data window", pixel_bytes,
+                            after_header);
+    }
+  }
+  // Then what OpenEXR allocates where a chunk is larger than the window.
+  for (const ExrPart& p : parts) {
+    CheckExrChunkBuffers(path, p, flags, after_header);
   }
 }
 

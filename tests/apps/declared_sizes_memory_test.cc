@@ -2,9 +2,9 @@
 // 200 MB resident (geometry/util/size_limits.h, docs/RELIABILITY.md "Sizes
 // checked before allocating"). Each reader runs in a forked child on its
 // hostile file; the child must end with the reader's InputError and its peak
-// resident set (wait4's ru_maxrss) must stay under the bound: npz, npy, EXR,
-// PLY, PCD, a nuScenes JSON table, a video, and (through
-// `geodrive-diffusion check-weights`) a safetensors checkpoint.
+// resident set (wait4's ru_maxrss) must stay under the bound: npz, npy, EXR
+// (a huge window, huge tiles), PLY, PCD, a nuScenes JSON table, a video, and
+// (through `geodrive-diffusion check-weights`) a safetensors checkpoint.
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -124,6 +124,23 @@ TEST(DeclaredSizesMemory, EveryReaderStaysUnder200MbOnAHugeDeclaredSize) {
     exr += std::string(16384 * 8, '\0');
     test::WriteFile(dir + "/huge.exr", exr);
     cases.push_back({"EXR", [&] { ReadExr(dir + "/huge.exr", {"Z"}); }});
+    // Tiles of 1 x 469762048 over a 4 x 4 window (fuzz_exr_header's third
+    // finding: OpenEXR sized its tile buffer, 1.88 GB, by the tile).
+    const std::string small = Le32(0) + Le32(0) + Le32(3) + Le32(3);
+    std::string tiled =
+        Le32(20000630) + Le32(2 | 0x200) +
+        attr("channels", "chlist",
+             std::string("Z") + '\0' + Le32(2) + std::string(4, '\0') +
+                 Le32(1) + Le32(1) + '\0') +
+        attr("compression", "compression", std::string(1, 0)) +
+        attr("dataWindow", "box2i", small) +
+        attr("displayWindow", "box2i", small) +
+        attr("tiles", "tiledesc",
+             Le32(1) + Le32(469762048) + std::string(1, 0)) +
+        '\0' + std::string(64, '\0');
+    test::WriteFile(dir + "/tall_tiles.exr", tiled);
+    cases.push_back(
+        {"EXR tiles", [&] { ReadExr(dir + "/tall_tiles.exr", {"Z"}); }});
   }
   // PLY and PCD: 50 million points declared over 64 KB.
   {

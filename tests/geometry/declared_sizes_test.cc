@@ -293,6 +293,43 @@ TEST(DeclaredSizes, HostileExrHeadersAreRefusedBeforeAllocating) {
            "the EXR header's chunk table declares 4294967296 bytes but the "
            "file holds only");
   }
+  // 5a. A real tiled file whose 64 x 64 tiles are larger than its 4 x 4
+  // window (OpenEXR's tile buffer, 16 KB, is under the ratio-free bytes):
+  // one tile, clipped to the window, still reads.
+  {
+    std::vector<ExrAttribute> h = Header(4, 4, 0);
+    h.push_back({"tiles", "tiledesc", Le32(64) + Le32(64) + std::string(1, 0)});
+    std::string bytes = ExrFile(h, 0, 0x200);
+    std::string offset(8, '\0');
+    Put32(&offset, 0, static_cast<uint32_t>(bytes.size() + 8));
+    bytes += offset + Le32(0) + Le32(0) + Le32(0) + Le32(0) + Le32(64);
+    for (int k = 0; k < 16; ++k) bytes += Le32(0x40200000);  // 2.5f
+    test::WriteFile(dir + "/small_window.exr", bytes);
+    EXPECT_EQ(ReadExr(dir + "/small_window.exr", {"Z"}).at<float>(3, 3), 2.5f);
+  }
+  // 5b. Tiles larger than the window: OpenEXR sizes a tile's buffer by the
+  // tile (fuzz_exr_header's third finding, tiles of 1 x 469762048 over 4 x 4,
+  // allocated 1.88 GB), then within the side limit but over the ratio.
+  {
+    std::vector<ExrAttribute> h = Header(4, 4, 0);
+    h.push_back(
+        {"tiles", "tiledesc", Le32(1) + Le32(469762048) + std::string(1, 0)});
+    expect("tall_tiles.exr", ExrFile(h, 4096, 0x200),
+           "EXR tiles of 1x469762048 are outside the reader's limit (1..16384 "
+           "a side)");
+    h.back().value = Le32(16384) + Le32(16384) + std::string(1, 0);
+    expect("big_tiles.exr", ExrFile(h, 4096, 0x200),
+           "EXR data window 4x4 in whole tiles of 16384x16384 is 16384x16384 "
+           "pixels, 1073741824 bytes at 4 bytes a pixel (OpenEXR's buffers), "
+           "over 1100 times the 4096 bytes after the header");
+  }
+  // 5c. One row of DWAB (256 scan lines a block) 16384 wide: a block's
+  // buffer is 256 rows whatever the window's height.
+  expect("dwab_row.exr", ExrFile(Header(16384, 1, 9), 4096),
+         "EXR data window 16384x1 in whole blocks of 256 scan lines "
+         "(compression 9) is 16384x256 pixels, 16777216 bytes at 4 bytes a "
+         "pixel (OpenEXR's buffers), over 1100 times the 4096 bytes after the "
+         "header");
   // 6. An attribute declaring 2^31 - 1 bytes in a small file.
   {
     std::vector<ExrAttribute> h = Header(8, 8, 0);
