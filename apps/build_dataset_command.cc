@@ -303,6 +303,10 @@ CommandRunner Setup(CLI::App& app) {
           {"footprint", RenderPreset::kFootprint},
           {"geodrive-compat", RenderPreset::kGeodriveCompat}}))
       ->default_str("paper");
+  app.add_option("--remove-instance", o.remove_instances,
+                 "Remove this instance (the dataset's instance id, e.g. a "
+                 "nuScenes instance token; repeatable) from every condition "
+                 "that has it, in every camera of a --cameras rig");
   app.add_option("--edit-mode", o.edit_mode,
                  "Dynamic editing from the clip's boxes: 3d, 2d, none")
       ->transform(CLI::CheckedTransformer(

@@ -109,6 +109,10 @@ void BuildDatasetOptions::Check() const {
       "build-dataset: --x264-preset '", video_preset,
       "' is not an x264 preset (ultrafast superfast veryfast faster fast "
       "medium slow slower veryslow placebo)");
+  GEODRIVE_CHECK_INPUT(
+      remove_instances.empty() || edit_mode != PairEditMode::kNone,
+      "build-dataset: --remove-instance needs --edit-mode 3d "
+      "or 2d, not none");
   if (!cameras.empty()) {  // surround view (dataset/rig.h)
     GEODRIVE_CHECK_INPUT(source == "lidar" || source == "lidar-dense",
                          "build-dataset: --cameras needs metric geometry "
@@ -135,6 +139,7 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   if (frames != ClipFrameSource::kAll) j["frames"] = ToString(frames);
   if (refine_poses) j["refine_poses"] = true;
   if (!cameras.empty()) j["cameras"] = cameras;
+  if (!remove_instances.empty()) j["remove_instances"] = remove_instances;
   if (export_format == PairExport::kGeodriveUpstream)
     j["export"] = "geodrive-upstream";
   j["width"] = width;

@@ -65,6 +65,10 @@ struct BuildDatasetOptions {
   RenderPreset preset = RenderPreset::kPaper;
   // Object editing from the clip's boxes.
   PairEditMode edit_mode = PairEditMode::k3d;
+  // Instances (the dataset's instance ids, e.g. nuScenes instance tokens)
+  // removed from every condition that has them, in every camera of a rig:
+  // their points and boxes are dropped (3d and 2d edit modes).
+  std::vector<std::string> remove_instances;
   std::vector<std::string> clips;  // restrict to these clip ids (empty = all)
   int max_clips =
       0;  // 0 = no limit (after sharding filter: first N of the list)

@@ -274,8 +274,20 @@ ConditionRender RenderConditionView(const ViewToRender& view,
     if (!view.dynamic_mask.empty()) eo.dynamic_mask = view.dynamic_mask;
     eo.num_threads = ro.num_threads;
     if (!view.metric) eo.box_margin = 0.0;
+    // Removals of instances this clip has (every camera of a rig gets the
+    // same list: the instance goes from all views at once).
+    std::vector<ObjectEdit> edits;
+    for (const std::string& id : opt.remove_instances) {
+      for (const BoxSequence& seq : boxes.instances) {
+        if (seq.id != id) continue;
+        ObjectEdit e;
+        e.kind = ObjectEditKind::kRemove;
+        e.instance = id;
+        edits.push_back(e);
+      }
+    }
     DynamicEditResult edited = RenderWithDynamicEdits(
-        cloud, {cam_render}, cam_from_cam0, boxes, {}, eo, ro);
+        cloud, {cam_render}, cam_from_cam0, boxes, edits, eo, ro);
     result.frames = std::move(edited.frames);
   }
   ConditionRender out;

@@ -10,14 +10,17 @@
 
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "dataset/build_dataset.h"
 #include "dataset/drive_dataset.h"
+#include "dataset/internal/pair_builder.h"
 #include "dataset/pairs.h"
 #include "dataset/scene_source.h"
 #include "dataset/synthetic/synthetic_dataset.h"
 #include "dataset/synthetic/synthetic_world.h"
+#include "render/dynamic_edit.h"
 #include "render/presets.h"
 #include "render/renderer.h"
 #include "tests/common/test_util.h"
@@ -261,6 +264,151 @@ TEST_F(RigSynthetic, ShiftedTrajectoryMovesEveryCameraRigidly) {
     EXPECT_LT(max_err, 0.01);
     EXPECT_GT(min_motion, 0.5);  // every projection really moved
   }
+}
+
+// A vehicle that two cameras see is one instance in both: the 3D editor
+// moves the same fused points in every camera (they land on the vehicle's
+// true pixels, in front of what it occludes), and removing it removes it from
+// every camera at once, as build-dataset --remove-instance does.
+TEST(RigSyntheticCrossing, OneInstanceAcrossCamerasMovedAndRemovedEverywhere) {
+  // A world where a vehicle crosses from CAM_FRONT into CAM_FRONT_RIGHT
+  // (seed 7: at 1.5 s it is 17 degrees right of the heading, at 3.5 s 49).
+  SyntheticDatasetOptions o;
+  o.num_scenes = 1;
+  o.seed = 7;
+  o.image_width = 320;
+  o.image_height = 180;
+  o.scene_duration_s = 4.0;
+  o.cameras = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT",
+               "CAM_BACK",  "CAM_BACK_LEFT",   "CAM_FRONT_LEFT"};
+  const std::string root = test::MakeTempDir("rig_crossing");
+  WriteSyntheticDataset(o, root);
+  DriveDatasetOptions d;
+  d.root = root;
+  d.version = o.version;
+  d.cameras = {"all"};
+  const auto dataset = OpenDriveDataset(d);
+  const DriveClip clip = dataset->LoadClip(dataset->ClipIds().back());
+  SceneSourceOptions so;
+  so.dense_width = o.image_width;
+  so.dense_objects = LidarObjects::kFrame0;  // the vehicles' points kept
+  std::vector<ConditionScene> scenes;
+  for (int k = 0; k < clip.num_views(); ++k) {
+    const DriveClip view = clip.View(k);
+    SceneInputs in;
+    in.clip = &view;
+    scenes.push_back(BuildConditionScene("lidar-dense", in, so));
+  }
+  const RigScene rig = FuseRigScenes(clip, std::move(scenes));
+  const SyntheticDatasetOptions* options_ = &o;
+  const SyntheticWorld world(SyntheticWorldOptionsFor(*options_, 0));
+  const SyntheticTimeline timeline = MakeSyntheticTimeline(*options_, 0);
+  BuildDatasetOptions bo;
+  bo.width = options_->image_width;
+  bo.height = options_->image_height;
+  const int last = clip.num_frames() - 1;
+  // Per camera, per vehicle index: its true pixels at frame 0 and at the last
+  // frame, and (rendered without and with the removal) the pixels drawn as
+  // it, and those of them the truth gives to it.
+  struct Count {
+    int64_t truth = 0, drawn = 0, drawn_on_truth = 0, drawn_removed = 0;
+  };
+  std::map<std::string, std::map<int, Count>> counts;  // camera, instance
+  std::map<std::string, int> vehicle_of;  // instance id -> vehicle index
+  for (int k = 0; k < clip.num_views(); ++k) {
+    const DriveClip view = clip.View(k);
+    const RigView& rv = rig.views[k];
+    const BoxSequences boxes = internal::ClipVehicleBoxes(
+        view, true, bo, rig.world_from_scene.Inverse());
+    const double t0 = timeline.Seconds(view.frames.front().timestamp_us);
+    // The box's vehicle: the one nearest to it at the frame's time (the
+    // boxes are annotations interpolated to the camera's time).
+    for (const ClipBox& b : view.frames.front().boxes) {
+      double best = 0.5;
+      for (int v = 0; v < world.NumVehicles(); ++v) {
+        const double dist = (world.Vehicle(v, t0).center - b.box.center).norm();
+        if (dist < best) best = dist, vehicle_of[b.instance_id] = v;
+      }
+    }
+    std::vector<Rigid3d> cam_from_scene;
+    for (const Rigid3d& p : rv.scene_from_cam)
+      cam_from_scene.push_back(p.Inverse());
+    RenderOptions ro = PresetRenderOptions(RenderPreset::kFootprint);
+    ro.width = bo.width;
+    ro.height = bo.height;
+    ro.far = 1000;
+    ro.output_instance = true;
+    DynamicEditOptions eo;
+    eo.mode = EditMode::k3d;
+    for (int removed = 0; removed < 2; ++removed) {
+      std::vector<ObjectEdit> edits;
+      if (removed) {
+        for (const BoxSequence& seq : boxes.instances) {
+          ObjectEdit e;
+          e.instance = seq.id;  // every vehicle removed
+          edits.push_back(e);
+        }
+      }
+      const DynamicEditResult r = RenderWithDynamicEdits(
+          rig.cloud, {rv.camera}, cam_from_scene, boxes, edits, eo, ro);
+      for (int t : {0, last}) {
+        const DriveFrame& f = view.frames[t];
+        const RenderedView truth = world.RenderCamera(
+            f.camera, f.world_from_cam, timeline.Seconds(f.timestamp_us));
+        const cv::Mat& inst = r.frames[t].instance;
+        for (int y = 0; y < inst.rows; ++y)
+          for (int x = 0; x < inst.cols; ++x) {
+            const uint16_t tv = truth.instance.at<uint16_t>(y, x);
+            const int id = inst.at<int32_t>(y, x);
+            const auto drawn_it =
+                id >= 0 && id < static_cast<int>(r.render_ids.size())
+                    ? vehicle_of.find(r.render_ids[id])
+                    : vehicle_of.end();
+            if (removed) {
+              if (drawn_it != vehicle_of.end())
+                ++counts[view.channel][drawn_it->second].drawn_removed;
+              continue;
+            }
+            if (tv != kStaticInstance && tv != kSkyInstance)
+              ++counts[view.channel][tv - 1].truth;
+            if (drawn_it != vehicle_of.end()) {
+              Count& c = counts[view.channel][drawn_it->second];
+              ++c.drawn;
+              c.drawn_on_truth += tv == drawn_it->second + 1;
+            }
+          }
+      }
+    }
+  }
+  // The vehicles that two or more cameras draw.
+  std::map<int, int> cameras_of;
+  for (const auto& [camera, by_vehicle] : counts)
+    for (const auto& [v, c] : by_vehicle)
+      if (c.drawn > 200) ++cameras_of[v];
+  int shared = 0;
+  for (const auto& [camera, by_vehicle] : counts) {
+    for (const auto& [v, c] : by_vehicle) {
+      if (cameras_of[v] < 2 || c.drawn <= 200) continue;
+      ++shared;
+      const double precision = static_cast<double>(c.drawn_on_truth) / c.drawn;
+      const double recall =
+          c.truth ? static_cast<double>(c.drawn_on_truth) / c.truth : 0;
+      std::printf(
+          "vehicle %d in %-15s: %lld px drawn, %.3f of them on its true "
+          "pixels, %.3f of its true pixels drawn; removed: %lld px\n",
+          v, camera.c_str(), static_cast<long long>(c.drawn), precision, recall,
+          static_cast<long long>(c.drawn_removed));
+      // Occlusion: what is drawn as the vehicle is where the truth has it,
+      // in front of what it hides (measured: 1.000 in both cameras). The
+      // recall is low (0.11-0.12 measured: the points are what the frame-0
+      // LiDAR sweep saw of it, one side) and only reported.
+      EXPECT_GT(precision, 0.9) << camera << " vehicle " << v;
+    }
+  }
+  EXPECT_GE(shared, 2);  // at least one vehicle in two cameras
+  for (const auto& [camera, by_vehicle] : counts)
+    for (const auto& [v, c] : by_vehicle)
+      EXPECT_EQ(c.drawn_removed, 0) << camera << " vehicle " << v;
 }
 
 // The boxes every camera of the rig carries against the devkit's own
