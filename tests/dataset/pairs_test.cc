@@ -89,6 +89,76 @@ TEST(Pairs, MetaAndManifestValidateAgainstSchemas) {
             0);
 }
 
+// A surround-view pair's meta.json (views, seams, the per-camera files) and
+// manifest line (cameras, lidar-dense), as build-dataset --cameras writes
+// them, validate against the schemas and read back.
+TEST(Pairs, SurroundViewMetaAndManifestValidateAgainstSchemas) {
+  PairMeta m = SampleMeta();
+  m.geometry_source = "lidar-dense";
+  m.quality.psnr_static = {31.5, std::nullopt, 20.25};
+  for (const std::string cam : {"CAM_FRONT", "CAM_BACK"}) {
+    PairView v;
+    v.channel = cam;
+    v.frames = m.frames;
+    v.intrinsics = m.intrinsics;
+    v.world_from_cam = m.world_from_cam;
+    v.coverage = {0.75, 0.5, 0.25};
+    v.psnr_static = {std::nullopt, 22.0, 21.0};
+    if (cam == "CAM_BACK") v.supported_fraction = 0.5;
+    v.points_built = 1000;
+    v.points_kept = 900;
+    v.files = {{"gt", "gt_" + cam + ".mp4"},
+               {"cond", "cond_" + cam + ".mp4"},
+               {"boxes", "boxes_" + cam + ".json"}};
+    for (const auto& [role, name] : v.files) m.files[role + ":" + cam] = name;
+    m.views.push_back(v);
+  }
+  m.seams.push_back({"CAM_FRONT", "CAM_BACK", 120, 0.875});
+  const std::string text = PairMetaToJson(m);
+  const PairMeta back = PairMetaFromJson(text);
+  ASSERT_EQ(back.views.size(), 2u);
+  EXPECT_EQ(back.views[1].channel, "CAM_BACK");
+  EXPECT_EQ(back.views[0].psnr_static[0], std::nullopt);
+  ASSERT_EQ(back.seams.size(), 1u);
+  EXPECT_EQ(back.seams[0].overlap_pixels, 120);
+  EXPECT_EQ(PairMetaToJson(back), text);
+
+  GEODRIVE_REQUIRE_PYTHON_MODULE("jsonschema");
+  const std::string dir = test::MakeTempDir("pairs_rig_schema");
+  WriteFileAtomic(dir + "/meta.json", text);
+  ManifestEntry e{m.clip_id, "pairs/" + m.clip_id, m.scene_name,
+                  3,         "lidar-dense",        "metres",
+                  0.5,       m.options_hash,       {"CAM_FRONT", "CAM_BACK"}};
+  WriteFileAtomic(dir + "/manifest.jsonl", ManifestEntryToJson(e) + "\n");
+  EXPECT_EQ(ReadManifest(dir + "/manifest.jsonl").at(0).cameras, e.cameras);
+  const std::string py = std::string(test::kDebianPython) +
+                         " " GEODRIVE_SOURCE_DIR
+                         "/tests/dataset/validate_json.py ";
+  const std::string schemas = GEODRIVE_SOURCE_DIR "/data_schema/";
+  std::string out;
+  EXPECT_EQ(
+      test::RunCommand(
+          py + schemas + "pair_meta.schema.json " + dir + "/meta.json", &out),
+      0)
+      << out;
+  EXPECT_EQ(test::RunCommand(py + "--jsonl " + schemas +
+                                 "manifest_line.schema.json " + dir +
+                                 "/manifest.jsonl",
+                             &out),
+            0)
+      << out;
+  // A view without its condition video is refused by the schema.
+  std::string bad = text;
+  const size_t at = bad.find("\"cond\": \"cond_CAM_BACK.mp4\"");
+  ASSERT_NE(at, std::string::npos);
+  bad.replace(at, 6, "\"cnd\"");
+  WriteFileAtomic(dir + "/bad.json", bad);
+  EXPECT_NE(
+      test::RunCommand(
+          py + schemas + "pair_meta.schema.json " + dir + "/bad.json", &out),
+      0);
+}
+
 TEST(Pairs, ManifestAndFailuresRoundTripThroughAppender) {
   const std::string dir = test::MakeTempDir("pairs_manifest");
   {
