@@ -855,6 +855,33 @@ void BindTrajectories(py::module_& m) {
 
 // ---- Metrics and pairs ----
 
+// One camera of a surround-view pair (PairView) with its videos as ReadPair
+// resolved them: the module's conventions (K (3, 3), poses (T, 4, 4)
+// world_from_cam, image_size (width, height)).
+py::dict PairViewDict(const PairView& v,
+                      const std::string& gt_video,
+                      const std::string& cond_video) {
+  py::dict d;
+  d["channel"] = v.channel;
+  d["gt_video"] = gt_video;
+  d["cond_video"] = cond_video;
+  d["num_frames"] = static_cast<int>(v.frames.size());
+  CArray<int64_t> t({static_cast<py::ssize_t>(v.frames.size())});
+  for (size_t i = 0; i < v.frames.size(); ++i)
+    t.mutable_data()[i] = v.frames[i].timestamp_us;
+  d["timestamps_us"] = t;
+  d["K"] = MatrixToArray(v.intrinsics.K());
+  d["image_size"] = std::make_pair(v.intrinsics.width, v.intrinsics.height);
+  d["world_from_cam"] = PosesToArray(v.world_from_cam);
+  d["coverage"] = v.coverage;
+  d["psnr_static"] = v.psnr_static;
+  d["supported_fraction"] = v.supported_fraction;
+  d["coverage_of_supported"] = v.coverage_of_supported;
+  d["points_built"] = v.points_built;
+  d["points_kept"] = v.points_kept;
+  return d;
+}
+
 void BindMetrics(py::module_& m) {
   m.def(
       "psnr",
@@ -926,11 +953,31 @@ void BindMetrics(py::module_& m) {
         out["gt_video"] = r.gt_video;
         out["cond_video"] = r.cond_video;
         out["num_frames"] = static_cast<int>(r.meta.frames.size());
+        py::list cameras, views, seams;
+        for (size_t k = 0; k < r.meta.views.size(); ++k) {
+          const PairView& v = r.meta.views[k];
+          cameras.append(v.channel);
+          views.append(PairViewDict(v, r.view_gt_videos.at(k),
+                                    r.view_cond_videos.at(k)));
+        }
+        for (const PairSeam& s : r.meta.seams) {
+          py::dict d;
+          d["camera_a"] = s.camera_a;
+          d["camera_b"] = s.camera_b;
+          d["overlap_pixels"] = s.overlap_pixels;
+          d["agreeing_fraction"] = s.agreeing_fraction;
+          seams.append(d);
+        }
+        out["cameras"] = cameras;
+        out["views"] = views;
+        out["seams"] = seams;
         return out;
       },
       py::arg("build_dir"), py::arg("entry"),
       "Checks a manifest line's pair (ReadPair) and returns its folder, video "
-      "paths and frame count.");
+      "paths and frame count; for a surround-view pair also its cameras, "
+      "views (per camera, reference first: videos, K, poses, quality) and "
+      "seams (empty lists for a single-camera pair).");
   m.def(
       "read_meta_json",
       [](const PathArg& pair_dir) {

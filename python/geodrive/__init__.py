@@ -33,12 +33,13 @@ render_with_edits = _checked(_core.render_with_edits, _core)
 scene_sources = _checked(_core.scene_sources, _core)
 ssim = _checked(_core.ssim, _core)
 _read_meta_json = _checked(_core.read_meta_json, _core, "read_meta")
-_read_pair = _checked(_core.read_pair, _core)
+read_pair = _checked(_core.read_pair, _core)
+_read_pair = read_pair  # the name before read_pair was public
 
 __all__ = [
     "Clip", "ConditionScene", "Dataset", "ade_fde", "condition_scene",
     "edit_trajectory", "open_dataset", "psnr", "read_manifest", "read_meta",
-    "read_trajectory", "read_video", "reconstruction_format", "render", "render_with_edits",
+    "read_pair", "read_trajectory", "read_video", "reconstruction_format", "render", "render_with_edits",
     "scene_sources", "ssim",
 ]
 

@@ -1,6 +1,6 @@
 """Type hints of geodrive (the pybind11 extension geodrive._core)."""
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -22,6 +22,41 @@ class Clip:
     def boxes(self, frame: int) -> List[Dict[str, Any]]: ...
     def lidar_sweeps(self) -> List[Dict[str, Any]]: ...
     def load_sweep(self, index: int) -> F32: ...  # (N, 5)
+
+# Stub-only types (plain dicts at run time).
+class _PairView(TypedDict):
+    """One camera of a surround-view pair: read_pair(...)["views"][k]."""
+    channel: str
+    gt_video: str
+    cond_video: str
+    num_frames: int
+    timestamps_us: npt.NDArray[np.int64]  # (T,)
+    K: F64  # (3, 3) at the output size
+    image_size: Tuple[int, int]  # (width, height)
+    world_from_cam: F64  # (T, 4, 4), world = the reference camera at frame 0
+    coverage: List[float]
+    psnr_static: List[Optional[float]]
+    supported_fraction: Optional[float]
+    coverage_of_supported: Optional[float]
+    points_built: int
+    points_kept: int
+
+class _PairSeam(TypedDict):
+    camera_a: str
+    camera_b: str
+    overlap_pixels: int
+    agreeing_fraction: float
+
+class _Pair(TypedDict):
+    """A manifest line's pair, checked (ReadPair); cameras, views and seams
+    are empty for a single-camera pair."""
+    dir: str
+    gt_video: str
+    cond_video: str
+    num_frames: int
+    cameras: List[str]
+    views: List[_PairView]
+    seams: List[_PairSeam]
 
 class Dataset:
     clip_ids: List[str]
@@ -75,4 +110,6 @@ def ssim(a: U8, b: U8) -> float: ...
 def ade_fde(pred: F64, gt: F64, align: str = "none") -> Dict[str, Any]: ...
 def read_manifest(path: str | os.PathLike[str]) -> List[Dict[str, Any]]: ...
 def read_meta(pair_dir: str | os.PathLike[str]) -> Dict[str, Any]: ...
+def read_pair(build_dir: str | os.PathLike[str],
+              entry: Dict[str, Any]) -> _Pair: ...
 def read_video(path: str | os.PathLike[str]) -> U8: ...

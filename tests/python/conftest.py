@@ -1,7 +1,7 @@
 """Shared fixtures of the Python module's tests (run by ctest; see
 tests/python/CMakeLists.txt): the module from the build tree, the real
-nuScenes extract, and a small built pair set (geodrive synth + build-dataset,
-the demo's pipeline at a smaller size)."""
+nuScenes extract, a small built pair set (geodrive synth + build-dataset,
+the demo's pipeline at a smaller size) and a small surround-view pair."""
 import importlib
 import os
 import subprocess
@@ -32,6 +32,28 @@ def pairs(tmp_path_factory):
                     "--monst3r", str(synth / "monst3r"), "--out", str(out),
                     "--threads", "2"], check=True, capture_output=True)
     return str(out / "manifest.jsonl")
+
+
+@pytest.fixture(scope="session")
+def rig_pairs(tmp_path_factory):
+    """manifest.jsonl of one six-camera surround-view pair (build-dataset
+    --cameras all, lidar-dense, 90x160) from a 3-second synthetic world with
+    every camera; and the manifest of one single-camera pair of the same
+    world (clip scene-0001_0006), as (rig manifest, single manifest)."""
+    d = tmp_path_factory.mktemp("rig_pairs")
+    synth, rig, single = d / "synth", d / "rig", d / "single"
+    subprocess.run([GEODRIVE, "synth", "--out", str(synth), "--scenes", "1",
+                    "--duration", "3", "--size", "90x160", "--cameras", "all"],
+                   check=True, capture_output=True)
+    common = ["build-dataset", "--dataroot", str(synth), "--geometry",
+              "lidar-dense", "--size", "90x160", "--quiet"]
+    subprocess.run([GEODRIVE] + common + ["--cameras", "all", "--max-clips", "1",
+                                          "--out", str(rig)],
+                   check=True, capture_output=True)
+    subprocess.run([GEODRIVE] + common + ["--clips", "scene-0001_0006",
+                                          "--out", str(single)],
+                   check=True, capture_output=True)
+    return str(rig / "manifest.jsonl"), str(single / "manifest.jsonl")
 
 
 def require(module):
