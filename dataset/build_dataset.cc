@@ -119,6 +119,11 @@ void BuildDatasetOptions::Check() const {
                          "shared by the rig (--geometry lidar or lidar-dense), "
                          "not ",
                          source);
+    GEODRIVE_CHECK_INPUT(!lossless_frames,
+                         "build-dataset: --lossless-frames writes one "
+                         "camera's frame folders; with --cameras the pairs "
+                         "hold gt_<CAM>.mp4 / cond_<CAM>.mp4 only (--crf 0 "
+                         "for the least loss)");
     GEODRIVE_CHECK_INPUT(export_format == PairExport::kNone,
                          "build-dataset: --export geodrive-upstream is "
                          "single-camera (GeoDrive's trainer reads CAM_FRONT "

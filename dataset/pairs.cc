@@ -392,6 +392,11 @@ PairRecord ReadPair(const std::string& build_dir, const ManifestEntry& entry) {
   };
   r.gt_video = resolve("gt_frames", "gt");
   r.cond_video = resolve("cond_frames", "cond");
+  std::vector<std::string> channels;
+  for (const PairView& v : r.meta.views) channels.push_back(v.channel);
+  GEODRIVE_CHECK_INPUT(entry.cameras.empty() || entry.cameras == channels,
+                       where, ": pair '", entry.clip_id,
+                       "' lists other cameras than its meta.json views");
   for (const PairView& v : r.meta.views) {
     for (const char* role : {"gt", "cond"}) {
       const auto it = v.files.find(role);
