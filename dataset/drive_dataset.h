@@ -48,7 +48,7 @@ struct DriveDatasetOptions {
 };
 
 // Largest time between a reference frame and a rig camera's matched frame
-// (nuScenes' six cameras fire within about 40 ms of each other at 12 Hz).
+// (nuScenes' six cameras fire within 43 ms of each other).
 constexpr int64_t kMaxRigTimeGapUs = 60000;
 
 // The nuScenes camera channels in the rig's layout order: the front row left

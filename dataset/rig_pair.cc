@@ -142,6 +142,7 @@ cv::Mat RigMosaic(const std::vector<ViewWork>& views) {
 // seam check of every overlapping pair.
 std::vector<PairSeam> SeamCheck(const RigScene& rig,
                                 const BuildDatasetOptions& opt) {
+  if (rig.views.size() < 2) return {};  // no pair of cameras
   std::vector<std::string> channels;
   std::vector<PinholeCamera> cameras;
   std::vector<Rigid3d> poses;
