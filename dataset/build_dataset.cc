@@ -690,9 +690,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   opt.Check();
   const auto t_start = std::chrono::steady_clock::now();
   BuildDatasetSummary summary;
-  CreateOutputDirectory(opt.out + "/pairs");
-  const OutputLocks locks(opt);
-
+  // The dataset first (read only): a bad dataroot, table or camera list
+  // leaves --out as it was.
   DriveDatasetOptions dso;
   dso.root = opt.dataroot;
   dso.version = opt.version;
@@ -704,6 +703,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   if (!opt.cameras.empty() && opt.cameras.front() != "all")
     dso.channel = opt.cameras.front();
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
+  CreateOutputDirectory(opt.out + "/pairs");
+  const OutputLocks locks(opt);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
   std::vector<std::string> clips = dataset->ClipIds();
   CheckClipIdsAreFolderNames(clips, opt.dataroot);

@@ -88,11 +88,12 @@ def main():
     assert r.returncode == 2, r.returncode
     assert "sample_data.json" in r.stderr and "'..'" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+    # Refused before anything is written: the output folder was not made.
+    assert not os.path.exists(out), out
     os.rename(os.path.join(data, renames[1]),
               os.path.join(data, "samples/CAM_FRONT/dotdot.jpg"))
     front[1]["filename"] = "samples/CAM_FRONT/dotdot.jpg"
     json.dump(sd, open(os.path.join(tables, "sample_data.json"), "w"))
-    shutil.rmtree(out)
     before = listing(work, {out, clips})
 
     r = run(build)
