@@ -35,8 +35,8 @@ class RigSynthetic : public ::testing::Test {
     options_ = new SyntheticDatasetOptions();
     options_->num_scenes = 1;
     options_->seed = 22;
-    options_->image_width = 640;
-    options_->image_height = 360;
+    options_->image_width = 320;
+    options_->image_height = 180;
     options_->scene_duration_s = 3.0;
     options_->cameras = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT",
                          "CAM_BACK",  "CAM_BACK_LEFT",   "CAM_FRONT_LEFT"};
@@ -158,10 +158,11 @@ TEST_F(RigSynthetic, EveryCameraAgainstTheTruth) {
         stream.channel.c_str(), s.coverage0, s.mean_coverage, s.psnr0,
         s.mean_psnr, static_cast<long long>(v.points_built),
         static_cast<long long>(v.points_kept));
-    // The single-camera lidar-dense floors (LidarDenseSynthetic): frame 0
-    // covers > 0.75 of the static pixels at > 30 dB, > 18 dB along the clip.
+    // Measured at 320x180 (seed 22): frame 0 covers 0.81-0.89 of the static
+    // pixels at 28.6-40.4 dB, 19.9-24.2 dB along the clip (the single-camera
+    // LidarDenseSynthetic at 640x360: 0.81, 35.4 dB). Floors with a margin:
     EXPECT_GT(s.coverage0, 0.75) << stream.channel;
-    EXPECT_GT(s.psnr0, 30.0) << stream.channel;
+    EXPECT_GT(s.psnr0, 27.0) << stream.channel;
     EXPECT_GT(s.mean_psnr, 18.0) << stream.channel;
     EXPECT_GT(v.points_kept, 0) << stream.channel;
     EXPECT_LE(v.points_kept, v.points_built) << stream.channel;
@@ -576,6 +577,10 @@ TEST(RigReal, Scene0916SixCamerasLidarDense) {
   o.cameras = {"all"};
   o.max_clips = 1;
   o.quiet = true;
+  // A quarter of the default pixels (the sanitizer job runs this test too).
+  o.width = 360;
+  o.height = 240;
+  o.lidar_dense_width = 400;
   o.out = test::MakeTempDir("rig_real");
   const BuildDatasetSummary summary = BuildDataset(o);
   ASSERT_EQ(summary.built, 1) << summary.BriefReport();
