@@ -684,6 +684,21 @@ void CheckClipIdsAreFolderNames(const std::vector<std::string>& clips,
   }
 }
 
+// The dataset's options for a build: its clips and, with --cameras, its rig
+// (the first camera listed is the reference; "all": CAM_FRONT).
+DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& opt) {
+  DriveDatasetOptions dso;
+  dso.root = opt.dataroot;
+  dso.version = opt.version;
+  dso.clip_frames = opt.clip_frames;
+  dso.clip_stride = opt.clip_stride;
+  dso.frames = opt.frames;
+  dso.cameras = opt.cameras;
+  if (!opt.cameras.empty() && opt.cameras.front() != "all")
+    dso.channel = opt.cameras.front();
+  return dso;
+}
+
 }  // namespace
 
 BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
@@ -692,17 +707,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   BuildDatasetSummary summary;
   // The dataset first (read only): a bad dataroot, table or camera list
   // leaves --out as it was.
-  DriveDatasetOptions dso;
-  dso.root = opt.dataroot;
-  dso.version = opt.version;
-  dso.clip_frames = opt.clip_frames;
-  dso.clip_stride = opt.clip_stride;
-  dso.frames = opt.frames;
-  dso.cameras = opt.cameras;
-  // The first camera listed is the reference ("all": CAM_FRONT).
-  if (!opt.cameras.empty() && opt.cameras.front() != "all")
-    dso.channel = opt.cameras.front();
-  const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
+  const std::unique_ptr<DriveDataset> dataset =
+      OpenDriveDataset(DatasetOptionsOf(opt));
   CreateOutputDirectory(opt.out + "/pairs");
   const OutputLocks locks(opt);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";
