@@ -291,6 +291,7 @@ ConditionRender RenderConditionView(const ViewToRender& view,
     result.frames = std::move(edited.frames);
   }
   ConditionRender out;
+  out.depth0 = result.frames.front().depth;
   for (int i = 0; i < n; ++i)
     out.coverage.push_back(result.frames[i].coverage());
   out.frames = FinalFrames(

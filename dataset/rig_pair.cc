@@ -6,7 +6,8 @@
 // LiDAR sweeps are read once and shared by the cameras); the views fused into
 // one cloud (stage fuse); per camera its vehicle boxes in the shared scene
 // frame (stage boxes), its condition along its own poses (stage render); the
-// frame-0 seam check (stage seams); the folder (stage encode):
+// seam check on the conditions' frame-0 depth (stage seams); the folder
+// (stage encode):
 //
 //   gt_<CAM>.mp4, cond_<CAM>.mp4, boxes_<CAM>.json   per camera
 //   gt.mp4, cond.mp4, boxes.json                      the reference camera's
@@ -75,18 +76,36 @@ struct ViewWork {
 std::vector<size_t> WithPointsInBoxes(const PointCloud& cloud,
                                       const BoxSequences& boxes,
                                       std::vector<size_t> drawn) {
-  std::vector<Box3d> frame0;
-  for (const BoxSequence& seq : boxes.instances)
-    if (const BoxFrame* f = seq.Find(0); f && f->box_3d)
-      frame0.push_back(*f->box_3d);
+  // Box3d::Contains(p, 1.0) per box, its rotation taken once: the point in
+  // box axes within the half extents grown 1 m; a sphere around the box
+  // rejects most points first.
+  struct Grown {
+    Eigen::Vector3d center, half;
+    Eigen::Matrix3d box_from_scene;
+    double reach2;
+  };
+  std::vector<Grown> frame0;
+  for (const BoxSequence& seq : boxes.instances) {
+    if (const BoxFrame* f = seq.Find(0); f && f->box_3d) {
+      const Box3d& b = *f->box_3d;
+      const Eigen::Vector3d half = b.HalfExtents() + Eigen::Vector3d::Ones();
+      frame0.push_back({b.center, half,
+                        b.rotation.normalized().conjugate().toRotationMatrix(),
+                        half.squaredNorm()});
+    }
+  }
   if (frame0.empty()) return drawn;
   std::vector<char> keep(cloud.size(), 0);
   for (size_t i : drawn) keep[i] = 1;
   for (size_t i = 0; i < cloud.size(); ++i) {
     if (keep[i]) continue;
     const Eigen::Vector3d p = cloud.positions[i].cast<double>();
-    for (const Box3d& b : frame0) {
-      if (b.Contains(p, 1.0)) {
+    for (const Grown& b : frame0) {
+      const Eigen::Vector3d d = p - b.center;
+      if (d.squaredNorm() > b.reach2) continue;
+      const Eigen::Vector3d q = b.box_from_scene * d;
+      if (std::abs(q.x()) <= b.half.x() && std::abs(q.y()) <= b.half.y() &&
+          std::abs(q.z()) <= b.half.z()) {
         keep[i] = 1;
         break;
       }
@@ -138,9 +157,12 @@ cv::Mat RigMosaic(const std::vector<ViewWork>& views) {
   return mosaic;
 }
 
-// Frame-0 depth of every camera (the static scene, output size) and the
-// seam check of every overlapping pair.
+// The seam check of every overlapping pair of cameras on their conditions'
+// frame-0 depth (the z-buffer presets render at the output size). The
+// released pipeline's preset renders at its own size: the frame-0 depth of
+// the static scene is then rendered here at the output size.
 std::vector<PairSeam> SeamCheck(const RigScene& rig,
+                                const std::vector<ViewWork>& works,
                                 const BuildDatasetOptions& opt) {
   if (rig.views.size() < 2) return {};  // no pair of cameras
   std::vector<std::string> channels;
@@ -152,18 +174,25 @@ std::vector<PairSeam> SeamCheck(const RigScene& rig,
   ro.height = opt.height;
   ro.radius_px = opt.splat_radius_px;
   ro.num_threads = opt.threads > 1 ? 1 : 0;
-  for (const RigView& v : rig.views) {
+  for (size_t k = 0; k < rig.views.size(); ++k) {
+    const RigView& v = rig.views[k];
     const PinholeCamera cam =
         v.source.CameraAt(opt.width, opt.height, opt.resize_mode);
-    const PointCloud drawn = rig.cloud.Select(
-        PointsInViewOfAny(rig.cloud, cam, {v.scene_from_cam.front()}, ro.near,
-                          ro.far, ro.radius_px));
-    const RenderResult r =
-        RenderFrames(drawn, {cam}, {v.scene_from_cam.front().Inverse()}, ro);
+    const cv::Mat& own = works[k].cond.depth0;
+    if (own.cols == opt.width && own.rows == opt.height) {
+      depth.push_back(own);
+    } else {
+      const PointCloud drawn = rig.cloud.Select(
+          PointsInViewOfAny(rig.cloud, cam, {v.scene_from_cam.front()}, ro.near,
+                            ro.far, ro.radius_px));
+      depth.push_back(
+          RenderFrames(drawn, {cam}, {v.scene_from_cam.front().Inverse()}, ro)
+              .frames.front()
+              .depth);
+    }
     channels.push_back(v.channel);
     cameras.push_back(cam);
     poses.push_back(v.scene_from_cam.front());
-    depth.push_back(r.frames.front().depth);
   }
   std::vector<PairSeam> out;
   for (const SeamAgreement& s :
@@ -312,7 +341,7 @@ PairMeta BuildRigPair(const ClipContext& ctx,
   meta.quality.psnr_static = views.front().cond.psnr_static;
   for (int k = 0; k < clip.num_views(); ++k)
     meta.views.push_back(MakePairView(views[k], rig.views[k], opt));
-  meta.seams = timer.Run("seams", [&] { return SeamCheck(rig, opt); });
+  meta.seams = timer.Run("seams", [&] { return SeamCheck(rig, views, opt); });
   timer.Run("encode", [&] { WriteRigPairFolder(tmp_dir, views, opt, &meta); });
   return meta;
 }

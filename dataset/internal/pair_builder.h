@@ -109,6 +109,10 @@ struct ConditionRender {
   std::vector<cv::Mat> native_frames;
   std::vector<double> coverage;
   std::vector<std::optional<double>> psnr_static;
+  // Frame 0's depth as the renderer made it (CV_32F, camera z in the scene's
+  // units, 0 = no point), at the render size (the output size for the
+  // z-buffer presets): the surround-view seam check reads it.
+  cv::Mat depth0;
   // lidar-dense: frame 0 before and after the depth completion (image |
   // projected returns | completed depth, CompletionPreview); empty otherwise.
   cv::Mat completion_preview;
