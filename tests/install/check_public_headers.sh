@@ -15,7 +15,7 @@ check_one() {
   local header=$1 cxx flags out bad heavy
   cxx=$(sed -n 1p "$build/public_header_flags.txt")
   read -r -a flags <<< "$(sed -n 2p "$build/public_header_flags.txt")"
-  heavy='(/pcl[-/]|/flann/|/vtk|/ceres/|/nlohmann/|/torch/|/ATen/|/c10/)'
+  heavy='(/pcl[-/]|/flann/|/vtk|/ceres/|/nlohmann/|/torch/|/ATen/|/c10/|/google/protobuf/)'
   [[ "$header" == */diffusion/* ]] && heavy='(/pcl[-/]|/flann/|/vtk|/ceres/|/nlohmann/)'
   if ! out=$("$cxx" -std=c++17 -fsyntax-only -H -x c++ "${flags[@]}" "$header" 2>&1); then
     echo "FAIL: $header does not compile alone:"
