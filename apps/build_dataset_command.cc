@@ -32,6 +32,7 @@ struct Args {
   std::string clips;
   std::string merge;
   std::string cameras;
+  std::string exports = "none";
 };
 
 void ParseShard(const std::string& text, int* index, int* count) {
@@ -62,6 +63,7 @@ int Run(Args& a) {
   ParseShard(a.shard, &o.shard_index, &o.shard_count);
   if (!a.cameras.empty())
     o.cameras = ParseCameraList(a.cameras, "", "--cameras");
+  o.exports = ParseExportFormats(a.exports);
   ParseSizeHxW(a.size, "--size", &o.height, &o.width);
   // The lidar-dense frame-0 depth's memory, from the option alone (a 16:9
   // camera, nuScenes' CAM_FRONT); each clip checks its own camera again.
@@ -259,14 +261,21 @@ void AddPairOptions(CLI::App& app, Args& a) {
                "MonST3R geometry: refine the poses by reprojection over static "
                "confident pixels (paper eq. 3); meta.json reports the RMS "
                "before and after");
-  app.add_option("--export", o.export_format,
-                 "Also write the pairs for another tool: geodrive-upstream "
-                 "(GeoDrive's released train.py: OUT/geodrive_upstream/"
-                 "sample_%06d/render_%d.png and meta.jsonl)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, PairExport>{
-          {"none", PairExport::kNone},
-          {"geodrive-upstream", PairExport::kGeodriveUpstream}}))
-      ->default_str("none");
+  app.add_option("--export", a.exports,
+                 "Also write the pairs for other trainers, FORMAT[,FORMAT...]: "
+                 "geodrive-upstream (GeoDrive's released train.py: "
+                 "OUT/geodrive_upstream/sample_%06d/render_%d.png and "
+                 "meta.jsonl), streetcrafter (StreetCrafter's video trainer: "
+                 "OUT/streetcrafter/meta_info_{train,val}.json, 25-frame "
+                 "samples at 576x320); none")
+      ->capture_default_str();
+  app.add_option("--val-fraction", o.export_options.val_fraction,
+                 "Exports with train/val lists: fraction of the scenes "
+                 "listed for validation (by scene, seeded)")
+      ->capture_default_str();
+  app.add_option("--split-seed", o.export_options.split_seed,
+                 "Seed of the exports' by-scene train/val split")
+      ->capture_default_str();
   app.add_flag("--keep-mismatched", o.keep_mismatched,
                "Keep pairs of OUT built with other content options (reported) "
                "instead of rebuilding them");

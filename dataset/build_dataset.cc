@@ -124,10 +124,29 @@ void BuildDatasetOptions::Check() const {
                          "camera's frame folders; with --cameras the pairs "
                          "hold gt_<CAM>.mp4 / cond_<CAM>.mp4 only (--crf 0 "
                          "for the least loss)");
-    GEODRIVE_CHECK_INPUT(export_format == PairExport::kNone,
-                         "build-dataset: --export geodrive-upstream is "
-                         "single-camera (GeoDrive's trainer reads CAM_FRONT "
-                         "only); drop --cameras or --export");
+    GEODRIVE_CHECK_INPUT(exports.empty(), "build-dataset: --export ",
+                         ToString(exports),
+                         " is single-camera (the trainers read one camera's "
+                         "clips); drop --cameras or --export");
+  }
+  GEODRIVE_CHECK_INPUT(export_options.Check(),
+                       "build-dataset: --val-fraction must be in [0, 1], got ",
+                       export_options.val_fraction);
+  for (const ExportFormat format : exports) {
+    const ExportRequirements req =
+        CreateExporter(format, export_options)->Requirements();
+    const int need = std::max(req.exact_frames, req.min_frames);
+    GEODRIVE_CHECK_INPUT(
+        (req.exact_frames <= 0 || clip_frames == req.exact_frames) &&
+            clip_frames >= req.min_frames,
+        "build-dataset: --export ", ToString(format), " needs ", need,
+        " frames per clip; --clip-frames is ", clip_frames);
+    // A guidance is the points on black: the released preset puts the real
+    // image in frame 0.
+    GEODRIVE_CHECK_INPUT(
+        !req.depth || preset != RenderPreset::kGeodriveCompat,
+        "build-dataset: --export ", ToString(format),
+        " needs a z-buffer preset (paper or footprint), not geodrive-compat");
   }
 }
 
@@ -145,8 +164,9 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   if (refine_poses) j["refine_poses"] = true;
   if (!cameras.empty()) j["cameras"] = cameras;
   if (!remove_instances.empty()) j["remove_instances"] = remove_instances;
-  if (export_format == PairExport::kGeodriveUpstream)
-    j["export"] = "geodrive-upstream";
+  // One name as before ("geodrive-upstream"), so that earlier pairs keep
+  // their hash.
+  if (!exports.empty()) j["export"] = ToString(exports);
   j["width"] = width;
   j["height"] = height;
   j["resize_mode"] = ToString(resize_mode);
@@ -722,6 +742,10 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   ctx.dataset = dataset.get();
   ctx.options = &opt;
   ctx.clip_index = &clip_index;
+  std::vector<std::unique_ptr<Exporter>> exporters;
+  for (const ExportFormat format : opt.exports)
+    exporters.push_back(CreateExporter(format, opt.export_options));
+  ctx.exporters = &exporters;
   std::unique_ptr<SceneFolders> folders;
   const SceneSourceTraits traits =
       CreateSceneSource(opt.SceneSourceName())->Traits();
@@ -838,8 +862,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
       }
     };
     write([&] { RewriteLogs(opt.out, &run); });
-    if (opt.export_format == PairExport::kGeodriveUpstream)
-      write([&] { internal::WriteUpstreamIndex(opt.out); });
+    for (const auto& e : exporters) write([&] { e->Finish(opt.out); });
     write([&] { WriteBuildReport(opt.out, &summary); });
   }
   return summary;
@@ -852,7 +875,9 @@ int MergeBuildOutputs(const std::string& out) {
                               OutputFolderLock::Mode::kExclusive);
   const std::optional<RunRecord> run = ReadRunRecord(out);
   const int n = RewriteLogs(out, run ? &*run : nullptr);
-  internal::WriteUpstreamIndex(out);  // no-op without exported pairs
+  // Every format's index (a no-op for a format no pair has).
+  for (const ExportFormat format : AllExportFormats())
+    CreateExporter(format)->Finish(out);
   WriteBuildReport(out, nullptr);
   return n;
 }

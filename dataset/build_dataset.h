@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "dataset/drive_clip.h"
+#include "dataset/exporter.h"
 #include "dataset/pairs.h"
 #include "dataset/scene_source.h"
 #include "geometry/camera.h"
@@ -32,17 +33,6 @@ enum class PairEditMode {
 std::string ToString(PairEditMode mode);  // "3d", "2d", "none"
 // Parses "3d", "2d" or "none"; throws InputError otherwise.
 PairEditMode ParsePairEditMode(const std::string& text);
-
-// Extra formats written beside our pairs.
-enum class PairExport {
-  kNone,
-  // GeoDrive's released trainer (train.py): pairs/<clip>/upstream/render_%d.png
-  // (1024x576, frame 0 = the real image), linked as
-  // OUT/geodrive_upstream/sample_%06d/ with OUT/geodrive_upstream/meta.jsonl
-  // ({gt_frames relative to the dataroot, render_frames relative to
-  // OUT/geodrive_upstream, scene_idx}).
-  kGeodriveUpstream,
-};
 
 struct BuildDatasetOptions {
   std::string dataroot;  // nuScenes root (holds <version>/, samples/, sweeps/)
@@ -119,8 +109,14 @@ struct BuildDatasetOptions {
   // Keep pairs of OUT built with other content options (reported) instead of
   // rebuilding them.
   bool keep_mismatched = false;
-  // Also write the pairs in another tool's format.
-  PairExport export_format = PairExport::kNone;
+  // Also write the pairs in other trainers' formats (dataset/exporter.h):
+  // geodrive-upstream links pairs/<clip>/upstream/render_%d.png (1024x576,
+  // frame 0 = the real image) as OUT/geodrive_upstream/sample_%06d/ with
+  // OUT/geodrive_upstream/meta.jsonl; streetcrafter writes
+  // pairs/<clip>/streetcrafter/ and OUT/streetcrafter/meta_info_*.json.
+  std::vector<ExportFormat> exports;
+  // The exports' split (val fraction by scene, seed).
+  ExportOptions export_options;
   bool quiet = false;
   // The scene source this run uses (`geometry` with "auto" resolved).
   std::string SceneSourceName() const;

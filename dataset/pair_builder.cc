@@ -226,20 +226,22 @@ BoxSequences ClipVehicleBoxes(const DriveClip& clip,
 ConditionRender RenderCondition(const ConditionScene& scene,
                                 const BoxSequences& boxes,
                                 const std::vector<cv::Mat>& gt,
-                                const BuildDatasetOptions& opt) {
+                                const BuildDatasetOptions& opt,
+                                const RenderKeep& keep) {
   ViewToRender view;
   view.cloud = &scene.cloud;
   view.camera = scene.camera;
   view.scene_from_cam = scene.trajectory.world_from_cam;
   view.metric = scene.metric();
   view.dynamic_mask = scene.dynamic_mask;
-  return RenderConditionView(view, boxes, gt, opt);
+  return RenderConditionView(view, boxes, gt, opt, keep);
 }
 
 ConditionRender RenderConditionView(const ViewToRender& view,
                                     const BoxSequences& boxes,
                                     const std::vector<cv::Mat>& gt,
-                                    const BuildDatasetOptions& opt) {
+                                    const BuildDatasetOptions& opt,
+                                    const RenderKeep& keep) {
   const PointCloud& cloud = *view.cloud;
   const int n = static_cast<int>(view.scene_from_cam.size());
   const RenderPreset preset = opt.preset;
@@ -297,8 +299,21 @@ ConditionRender RenderConditionView(const ViewToRender& view,
   out.frames = FinalFrames(
       result, preset,
       preset == RenderPreset::kGeodriveCompat ? gt.front() : cv::Mat());
-  if (opt.export_format == PairExport::kGeodriveUpstream) {
+  if (keep.native_frames) {
     for (const cv::Mat& f : out.frames) out.native_frames.push_back(f.clone());
+  }
+  if (keep.depth) {
+    for (int i = 0; i < n; ++i) {
+      const RenderedFrame& r = result.frames[i];
+      cv::Mat depth = r.depth, drawn = r.mask != kMaskInvalid;
+      if (depth.cols != opt.width || depth.rows != opt.height) {
+        const cv::Size size(opt.width, opt.height);
+        cv::resize(r.depth, depth, size, 0, 0, cv::INTER_NEAREST);
+        cv::resize(drawn, drawn, size, 0, 0, cv::INTER_NEAREST);
+      }
+      out.depth.push_back(depth);
+      out.drawn.push_back(drawn);
+    }
   }
   for (auto& f : out.frames) {
     if (f.cols != opt.width || f.rows != opt.height) {
@@ -421,7 +436,8 @@ void WritePairFolder(const std::string& dir,
                      const ConditionRender& cond,
                      const BoxSequences& boxes,
                      const BuildDatasetOptions& opt,
-                     PairMeta* meta) {
+                     PairMeta* meta,
+                     const std::vector<std::unique_ptr<ClipExport>>& exports) {
   const std::vector<cv::Mat>& gt = frames.gt;
   meta->quality.coverage = cond.coverage;
   meta->quality.psnr_static = cond.psnr_static;
@@ -450,10 +466,7 @@ void WritePairFolder(const std::string& dir,
     WritePairPng(dir + "/completion.png", cond.completion_preview);
     meta->files["completion_preview"] = "completion.png";
   }
-  if (opt.export_format == PairExport::kGeodriveUpstream) {
-    WriteUpstreamFrames(dir, frames, cond);
-    meta->files["upstream"] = "upstream";
-  }
+  for (const auto& x : exports) x->exporter->WriteClip(x->clip, dir, meta);
   meta->files["gt"] = "gt.mp4";
   meta->files["cond"] = "cond.mp4";
   meta->files["first_frame"] = "first_frame.png";
@@ -469,76 +482,93 @@ void WritePairFolder(const std::string& dir,
   WriteFileAtomic(dir + "/meta.json", PairMetaToJson(*meta));
 }
 
-void WriteUpstreamFrames(const std::string& dir,
-                         const ClipFrames& frames,
-                         const ConditionRender& cond) {
-  const cv::Size size(1024, 576);  // upstream: 288x512 render, x2 upsample
-  const std::string up = dir + "/upstream";
-  std::filesystem::create_directories(up);
-  for (size_t i = 0; i < cond.native_frames.size(); ++i) {
-    // Frame 0 is the real image (upstream replaces it); the others are the
-    // renderer's frames (exactly 576x1024 with the released preset).
-    cv::Mat real;
-    if (i == 0) {
-      real = frames.full.empty() ? ReadImageRgb(frames.first_frame_path)
-                                 : frames.full.front();
-    }
-    const cv::Mat& src = i == 0 ? real : cond.native_frames[i];
-    cv::Mat f = src;
-    if (f.size() != size) {
-      cv::resize(src, f, size, 0, 0,
-                 src.cols > size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
-    }
-    WritePairPng(up + "/render_" + std::to_string(i) + ".png", f);
-  }
+void CheckClipForExports(const ClipContext& ctx, const DriveClip& clip) {
+  if (!ctx.exporters) return;
+  for (const auto& e : *ctx.exporters)
+    CheckClipForExport(*e, clip.id, clip.num_frames());
 }
 
-int WriteUpstreamIndex(const std::string& out) {
-  namespace fs = std::filesystem;
-  const std::string root = out + "/geodrive_upstream";
-  std::vector<std::pair<int, std::string>> samples;  // scene_idx, jsonl line
-  if (fs::is_directory(out + "/pairs")) {
-    for (const auto& e : fs::directory_iterator(out + "/pairs")) {
-      const std::string name = e.path().filename().string();
-      if (!e.is_directory() || name.rfind(".", 0) == 0 ||
-          !fs::exists(e.path() / "meta.json") ||
-          !fs::is_directory(e.path() / "upstream"))
-        continue;
-      const PairMeta m = ReadPairMeta(e.path().string());
-      if (!m.upstream_scene_idx) continue;
-      char sample[32];
-      std::snprintf(sample, sizeof(sample), "sample_%06d",
-                    *m.upstream_scene_idx);
-      const fs::path link = fs::path(root) / sample;
-      fs::create_directories(root);
-      std::error_code ec;
-      fs::remove(link, ec);
-      fs::create_directory_symlink(fs::path("..") / "pairs" / name / "upstream",
-                                   link, ec);
-      GEODRIVE_CHECK_INPUT(!ec, link.string(), ": cannot create link (",
-                           ec.message(), ")");
-      // Through the JSON library: file names from the tables are data (a
-      // quote or a control byte in one is escaped, never written raw).
-      nlohmann::json j;
-      j["gt_frames"] = nlohmann::json::array();
-      j["render_frames"] = nlohmann::json::array();
-      for (size_t i = 0; i < m.frames.size(); ++i) {
-        j["gt_frames"].push_back(m.frames[i].filename);
-        j["render_frames"].push_back(std::string(sample) + "/render_" +
-                                     std::to_string(i) + ".png");
-      }
-      j["scene_idx"] = *m.upstream_scene_idx;
-      const std::string line = j.dump();
-      samples.emplace_back(*m.upstream_scene_idx, line);
-    }
+namespace {
+
+// True when `req` is served by the pair's own frames and render.
+bool AtPairSize(const ExportRequirements& req, const BuildDatasetOptions& opt) {
+  return (req.width == 0 && req.height == 0) ||
+         (req.width == opt.width && req.height == opt.height &&
+          opt.resize_mode == ResizeMode::kCenterCrop);
+}
+
+}  // namespace
+
+RenderKeep ExportRenderKeep(const ClipContext& ctx,
+                            const BuildDatasetOptions& opt) {
+  RenderKeep keep;
+  if (!ctx.exporters) return keep;
+  for (const auto& e : *ctx.exporters) {
+    const ExportRequirements req = e->Requirements();
+    if (!AtPairSize(req, opt)) continue;
+    keep.native_frames |= req.native_condition;
+    keep.depth |= req.depth;
   }
-  if (samples.empty() && !fs::exists(root)) return 0;
-  fs::create_directories(root);
-  std::sort(samples.begin(), samples.end());
-  std::string text;
-  for (const auto& [idx, line] : samples) text += line + "\n";
-  WriteFileAtomic(root + "/meta.jsonl", text);
-  return static_cast<int>(samples.size());
+  return keep;
+}
+
+std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
+    const ClipContext& ctx,
+    const DriveClip& clip,
+    const ConditionScene& scene,
+    const ClipFrames& frames,
+    const ConditionRender& cond,
+    const BoxSequences& boxes) {
+  std::vector<std::unique_ptr<ClipExport>> exports;
+  if (!ctx.exporters) return exports;
+  const BuildDatasetOptions& opt = *ctx.options;
+  for (const auto& e : *ctx.exporters) {
+    const ExportRequirements req = e->Requirements();
+    auto x = std::make_unique<ClipExport>();
+    x->exporter = e.get();
+    const ClipFrames* f = &frames;
+    const ConditionRender* c = &cond;
+    const BoxSequences* b = &boxes;
+    BuildDatasetOptions eopt = opt;
+    if (!AtPairSize(req, opt)) {
+      // The trainer's size: the frames decoded and the condition rendered at
+      // it, centre-cropped to its aspect (never a resize of our frames).
+      eopt.width = req.width;
+      eopt.height = req.height;
+      eopt.resize_mode = ResizeMode::kCenterCrop;
+      x->frames = ReadClipFrames(clip, eopt, 0);
+      x->frames.first_frame_path = frames.first_frame_path;
+      x->boxes = ClipVehicleBoxes(clip, scene.metric(), eopt);
+      RenderKeep keep;
+      keep.depth = req.depth;
+      x->cond = RenderCondition(scene, x->boxes, x->frames.gt, eopt, keep);
+      f = &x->frames;
+      c = &x->cond;
+      b = &x->boxes;
+    }
+    ExportClip& ec = x->clip;
+    ec.clip_id = clip.id;
+    ec.scene_name = clip.scene_name;
+    if (ctx.clip_index) {
+      const auto it = ctx.clip_index->find(clip.id);
+      if (it != ctx.clip_index->end()) ec.clip_index = it->second;
+    }
+    ec.images = &f->gt;
+    ec.condition = &c->frames;
+    if (req.depth) {
+      ec.depth = &c->depth;
+      ec.drawn = &c->drawn;
+    }
+    if (req.native_condition) ec.native_condition = &cond.native_frames;
+    if (!frames.full.empty()) ec.first_frame_full = frames.full.front();
+    ec.first_frame_path = frames.first_frame_path;
+    ec.camera = scene.CameraAt(eopt.width, eopt.height, eopt.resize_mode);
+    ec.world_from_cam = scene.trajectory.world_from_cam;
+    ec.metric = scene.metric();
+    ec.boxes = b;
+    exports.push_back(std::move(x));
+  }
+  return exports;
 }
 
 PairMeta BuildPair(const ClipContext& ctx,
@@ -551,6 +581,8 @@ PairMeta BuildPair(const ClipContext& ctx,
   StageTimer timer(stage_seconds);
   const DriveClip clip =
       timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
+  const bool exporting = ctx.exporters && !ctx.exporters->empty();
+  if (exporting) timer.Run("export", [&] { CheckClipForExports(ctx, clip); });
   // Full-size frames only as many as the source colours from (the LiDAR
   // sources: all, or frame 0); the others get the ground truth alone.
   const int full_size_images =
@@ -567,14 +599,21 @@ PairMeta BuildPair(const ClipContext& ctx,
   }
   const BoxSequences boxes = timer.Run(
       "boxes", [&] { return ClipVehicleBoxes(clip, scene.metric(), opt); });
-  ConditionRender cond = timer.Run(
-      "render", [&] { return RenderCondition(scene, boxes, frames.gt, opt); });
+  ConditionRender cond = timer.Run("render", [&] {
+    return RenderCondition(scene, boxes, frames.gt, opt,
+                           ExportRenderKeep(ctx, opt));
+  });
   cond.completion_preview = CompletionPreview(scene);
   PairMeta meta = MakePairMeta(clip, scene, opt);
-  if (opt.export_format == PairExport::kGeodriveUpstream && ctx.clip_index)
-    meta.upstream_scene_idx = ctx.clip_index->at(clip_id);
-  timer.Run("encode",
-            [&] { WritePairFolder(tmp_dir, frames, cond, boxes, opt, &meta); });
+  std::vector<std::unique_ptr<ClipExport>> exports;
+  if (exporting) {
+    exports = timer.Run("export", [&] {
+      return PrepareClipExports(ctx, clip, scene, frames, cond, boxes);
+    });
+  }
+  timer.Run("encode", [&] {
+    WritePairFolder(tmp_dir, frames, cond, boxes, opt, &meta, exports);
+  });
   return meta;
 }
 

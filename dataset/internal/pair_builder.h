@@ -8,12 +8,14 @@
 
 #include <chrono>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "dataset/build_dataset.h"
 #include "dataset/drive_dataset.h"
+#include "dataset/exporter.h"
 #include "dataset/pairs.h"
 #include "dataset/scene_folders.h"
 #include "dataset/scene_source.h"
@@ -37,6 +39,8 @@ struct ClipContext {
   const BuildDatasetOptions* options = nullptr;
   // Per-clip input folders of path-based scene sources; null otherwise.
   const SceneFolders* folders = nullptr;
+  // The run's exporters (BuildDatasetOptions::exports); null = none.
+  const std::vector<std::unique_ptr<Exporter>>* exporters = nullptr;
 };
 
 // The clip's images: at source size (only for sources that colour from them;
@@ -107,6 +111,9 @@ struct ConditionRender {
   // The frames as the renderer made them, before the resize to the output
   // size (the released preset: 576x1024), for exports.
   std::vector<cv::Mat> native_frames;
+  // Per frame at the output size, for exports: z-depth (CV_32F, the scene's
+  // units, 0 = no point) and drawn mask (CV_8U, 255 = a point was drawn).
+  std::vector<cv::Mat> depth, drawn;
   std::vector<double> coverage;
   std::vector<std::optional<double>> psnr_static;
   // Frame 0's depth as the renderer made it (CV_32F, camera z in the scene's
@@ -154,11 +161,19 @@ BoxSequences ClipVehicleBoxes(const DriveClip& clip,
                               bool metric,
                               const BuildDatasetOptions& options,
                               const Rigid3d& scene_from_world);
+// What a render keeps beside the condition frames, for exports.
+struct RenderKeep {
+  // ConditionRender::native_frames.
+  bool native_frames = false;
+  // ConditionRender::depth and ::drawn.
+  bool depth = false;
+};
 // Renders the scene along its trajectory with dynamic edits from `boxes`.
 ConditionRender RenderCondition(const ConditionScene& scene,
                                 const BoxSequences& boxes,
                                 const std::vector<cv::Mat>& gt,
-                                const BuildDatasetOptions& options);
+                                const BuildDatasetOptions& options,
+                                const RenderKeep& keep = {});
 // One camera's view of a scene: the cloud, the frame-0 camera on the source's
 // grid (resized to the output as options say), the poses scene_from_cam per
 // frame, units, the frame-0 dynamic mask.
@@ -173,26 +188,52 @@ struct ViewToRender {
 ConditionRender RenderConditionView(const ViewToRender& view,
                                     const BoxSequences& boxes,
                                     const std::vector<cv::Mat>& gt,
-                                    const BuildDatasetOptions& options);
+                                    const BuildDatasetOptions& options,
+                                    const RenderKeep& keep = {});
 // The pair's metadata (files and quality are filled by the writer).
 PairMeta MakePairMeta(const DriveClip& clip,
                       const ConditionScene& scene,
                       const BuildDatasetOptions& options);
-// Writes DIR/upstream/render_%d.png as GeoDrive's upstream renderer does:
-// 1024x576 RGB, frame 0 = the real image.
-void WriteUpstreamFrames(const std::string& dir,
-                         const ClipFrames& frames,
-                         const ConditionRender& cond);
-// Rebuilds OUT/geodrive_upstream/ (sample_%06d links and meta.jsonl) from the
-// pair folders that have upstream frames. Returns the number of samples.
-int WriteUpstreamIndex(const std::string& out);
-// Encodes the videos and writes the pair folder into `dir`; fills meta.files.
-void WritePairFolder(const std::string& dir,
-                     const ClipFrames& frames,
-                     const ConditionRender& cond,
-                     const BoxSequences& boxes,
-                     const BuildDatasetOptions& options,
-                     PairMeta* meta);
+// One exporter's view of a clip (ExportClip) with the frames and renders it
+// points into: the pair's own, or a second render at the exporter's size.
+struct ClipExport {
+  const Exporter* exporter = nullptr;
+  ClipFrames frames;
+  ConditionRender cond;
+  BoxSequences boxes;
+  // Points into the members above or into the pair's frames and render: not
+  // copyable or movable once made.
+  ExportClip clip;
+  ClipExport() = default;
+  ClipExport(const ClipExport&) = delete;
+  ClipExport& operator=(const ClipExport&) = delete;
+};
+// Checks the clip against every exporter's requirements (the error names the
+// first unmet one).
+void CheckClipForExports(const ClipContext& ctx, const DriveClip& clip);
+// What the pair's render must keep for the exporters served at its size.
+RenderKeep ExportRenderKeep(const ClipContext& ctx,
+                            const BuildDatasetOptions& options);
+// Every exporter's view of the clip: the pair's frames and render when the
+// exporter takes the pair's size, a second read and render at its own size
+// otherwise.
+std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
+    const ClipContext& ctx,
+    const DriveClip& clip,
+    const ConditionScene& scene,
+    const ClipFrames& frames,
+    const ConditionRender& cond,
+    const BoxSequences& boxes);
+// Encodes the videos and writes the pair folder into `dir`, with each
+// export's files; fills meta.files.
+void WritePairFolder(
+    const std::string& dir,
+    const ClipFrames& frames,
+    const ConditionRender& cond,
+    const BoxSequences& boxes,
+    const BuildDatasetOptions& options,
+    PairMeta* meta,
+    const std::vector<std::unique_ptr<ClipExport>>& exports = {});
 
 // Builds one surround-view pair (options.cameras; dataset/rig.h) into
 // `tmp_dir`; returns its meta. Throws StageError.
