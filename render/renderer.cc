@@ -634,14 +634,9 @@ void RenderCheckedScene(const PointCloud& static_cloud,
                 sets[k].instance_id);
     }
   }
-  // Frustum culling boxes for the radius-0 path (renderer_internal.h), when
-  // a range takes it: the static cloud unless it is drawn with footprints,
-  // a moving set without footprints.
-  bool plain_range = !static_footprints;
-  for (const MovingPointSet& set : sets)
-    plain_range |= !set.points.HasFootprints();
-  const bool cull =
-      zbuffer && options.radius_px <= 0 && plain_range && UseCulling();
+  // Frustum culling boxes (renderer_internal.h) for every z-buffer path:
+  // single pixels, disks and footprints, each culled with its reach.
+  const bool cull = zbuffer && UseCulling();
   const size_t num_groups = (packed.size() + kCullGroup - 1) / kCullGroup;
   if (cull) packed.cull_box.resize(9 * num_groups);
   RenderResult& result = *result_out;

@@ -729,6 +729,32 @@ int64_t ResolveZBuffer(const ZResolveArgs& a, bool stream) {
   return ResolveZScalar(a, 0);
 }
 
+// Calls fn(base, m) for consecutive blocks [base, base + m) of the range,
+// m <= kBlock, that hold only points of groups `culled` does not mark
+// (indexed from the range's first group; empty = none culled).
+template <typename Fn>
+void ForEachDrawnBlock(const ProjectedRange& range,
+                       const std::vector<uint8_t>& culled,
+                       Fn&& fn) {
+  const int first_group = range.begin / kCullGroup;
+  const auto is_culled = [&](int i) {
+    return !culled.empty() && culled[i / kCullGroup - first_group];
+  };
+  int base = range.begin;
+  while (base < range.end) {
+    if (is_culled(base)) {
+      base = std::min(range.end, (base / kCullGroup + 1) * kCullGroup);
+      continue;
+    }
+    int end = base;
+    while (end < range.end && end - base < kBlock && !is_culled(end))
+      end = std::min(range.end, (end / kCullGroup + 1) * kCullGroup);
+    const int m = std::min(end, base + kBlock) - base;
+    fn(base, m);
+    base += m;
+  }
+}
+
 // Radius 0 over one range, a block of at most kBlock points at a time
 // (ProjectPixelsAvx2 where available, ProjectBlock for the rest, then
 // SplatPoints), skipping the groups of points that `culled` marks (indexed
@@ -741,22 +767,8 @@ int64_t SplatRangeRadiusZero(const PackedCloud& soa,
                              ProjectedBlock* blk,
                              uint64_t* kb) {
   const float fw = static_cast<float>(w), fh = static_cast<float>(h);
-  const int first_group = range.begin / kCullGroup;
-  const auto is_culled = [&](int i) {
-    return !culled.empty() && culled[i / kCullGroup - first_group];
-  };
   int64_t projected = 0;
-  int base = range.begin;
-  while (base < range.end) {
-    if (is_culled(base)) {
-      base = std::min(range.end, (base / kCullGroup + 1) * kCullGroup);
-      continue;
-    }
-    // [base, end): points of groups that are not culled, at most kBlock.
-    int end = base;
-    while (end < range.end && end - base < kBlock && !is_culled(end))
-      end = std::min(range.end, (end / kCullGroup + 1) * kCullGroup);
-    const int m = std::min(end, base + kBlock) - base;
+  ForEachDrawnBlock(range, culled, [&](int base, int m) {
     int k0 = 0, packed = 0;
 #ifdef GEODRIVE_HAVE_AVX2_PATH
     if (UseAvx2()) {
@@ -767,8 +779,7 @@ int64_t SplatRangeRadiusZero(const PackedCloud& soa,
 #endif
     ProjectBlock(soa, base, m, range.proj, blk, k0);
     projected += SplatPoints(blk, packed, k0, k0, m, base, w, fw, fh, kb);
-    base += m;
-  }
+  });
   return projected;
 }
 
@@ -800,21 +811,28 @@ void RenderZBuffer(const PackedCloud& soa,
   std::vector<uint8_t>& culled = scratch->culled;
   for (const ProjectedRange& range : ranges) {
     const bool footprints = range.footprint_scale > 0 && !soa.footprint.empty();
+    // The groups of this range that lie outside the view grown by the
+    // largest half-extent a point of the path draws, plus one pixel: a disk
+    // of radius r is drawn from u > -r - 1, a footprint box of half-extent
+    // at most max(r, 0.5, max_magnification / 2) likewise.
+    culled.clear();
+    if (!soa.cull_box.empty() && UseCulling() && range.begin < range.end) {
+      const double reach =
+          footprints ? std::max({static_cast<double>(r), 0.5,
+                                 0.5 * static_cast<double>(max_magnification)})
+                     : static_cast<double>(r);
+      const double margin = !footprints && r <= 0 ? 0.0 : reach + 1.0;
+      const int g_begin = range.begin / kCullGroup,
+                g_end = (range.end - 1) / kCullGroup + 1;
+      culled.resize(g_end - g_begin);
+      CullGroups(soa, MakeFrustumPlanes(range.proj, w, h, margin), g_begin,
+                 g_end, culled.data());
+    }
     if (!footprints && r <= 0) {
-      // The groups of this range that lie outside the view.
-      culled.clear();
-      if (!soa.cull_box.empty() && UseCulling() && range.begin < range.end) {
-        const int g_begin = range.begin / kCullGroup,
-                  g_end = (range.end - 1) / kCullGroup + 1;
-        culled.resize(g_end - g_begin);
-        CullGroups(soa, MakeFrustumPlanes(range.proj, w, h), g_begin, g_end,
-                   culled.data());
-      }
       projected += SplatRangeRadiusZero(soa, range, culled, w, h, &blk, kb);
       continue;
     }
-    for (int base = range.begin; base < range.end; base += kBlock) {
-      const int m = std::min(kBlock, range.end - base);
+    ForEachDrawnBlock(range, culled, [&](int base, int m) {
       if (footprints) {
         ProjectBlock(soa, base, m, range.proj, &blk);
         // Camera-facing footprints only (no surface axes) and no minimum
@@ -832,18 +850,18 @@ void RenderZBuffer(const PackedCloud& soa,
           projected += SplatCameraFacingFootprints(
               soa, base, m, range, max_magnification, w, h, &blk,
               scratch->magnified.data(), kb);
-          continue;
+          return;
         }
         projected += SplatFootprints(
             blk, m, base, soa.footprint.data() + base,
             soa.footprint_axes.empty() ? nullptr
                                        : soa.footprint_axes.data() + 6 * base,
             range.footprint_scale, range.proj, r, max_magnification, w, h, kb);
-        continue;
+        return;
       }
       ProjectBlock(soa, base, m, range.proj, &blk);
       projected += SplatDisks(blk, m, base, r, w, h, kb);
-    }
+    });
   }
   frame->num_projected = projected;
 
@@ -899,7 +917,10 @@ bool StreamOutputs(const RenderOptions& options, int num_frames) {
 // rows are alike. Each plane is one test: b + sum_j (a_j ctr_j + |a_j| hw_j +
 // m_j (|ctr_j| + hw_j)) <= 0, the margin's weights m_j folded in, computed in
 // double from the projector's floats.
-FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h) {
+FrustumPlanes MakeFrustumPlanes(const FrameProjector& p,
+                                int w,
+                                int h,
+                                double margin_px) {
   constexpr double kMargin = 1e-5;
   FrustumPlanes out;
   const auto row = [&](int i, int j) { return double{p.r[3 * i + j]}; };
@@ -926,17 +947,18 @@ FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h) {
   add(a, t2 - p.near, m, std::abs(t2));
   for (double& v : a) v = -v;
   add(a, p.far - t2, m, std::abs(t2));
-  // Columns (axis 0: fx, cx, W) and rows (axis 1: fy, cy, H). Side 0, before
-  // the first pixel: f x + (c + 0.5) z < 0; side 1, past the last one:
-  // f x + (c + 0.5 - size) z >= 0.
+  // Columns (axis 0: fx, cx, W) and rows (axis 1: fy, cy, H), the image
+  // grown by `margin_px` (M) on every side. Side 0, before the first pixel:
+  // f x + (c + 0.5 + M) z < 0; side 1, past the last one:
+  // f x + (c + 0.5 - size - M) z >= 0.
   for (int axis = 0; axis < 2; ++axis) {
     const double f = axis == 0 ? p.fx : p.fy;
     const double c = axis == 0 ? p.cx : p.cy;
     const double size = axis == 0 ? w : h;
     const double t = p.t[axis];
     for (int side = 0; side < 2; ++side) {
-      const double shift = c + 0.5 - (side ? size : 0.0);
-      const double weight = std::abs(c) + 0.5 + (side ? size : 0.0);
+      const double shift = c + 0.5 + (side ? -size - margin_px : margin_px);
+      const double weight = std::abs(c) + 0.5 + margin_px + (side ? size : 0.0);
       const double sign = side ? -1.0 : 1.0;
       for (int j = 0; j < 3; ++j) {
         a[j] = sign * (f * row(axis, j) + shift * row(2, j));

@@ -174,20 +174,25 @@ constexpr int kCullGroup = 256;
 // Fills soa->cull_box (sized by the caller) for groups [g_begin, g_end).
 void ComputeCullBoxes(size_t g_begin, size_t g_end, PackedCloud* soa);
 
-// The view of a projector and a w x h image as six plane tests on a box
-// (MakeFrustumPlanes, renderer_zbuffer.cc): near, far, before the first and
-// past the last column, likewise rows.
+// The view of a projector and a w x h image grown by `margin_px` pixels on
+// every side as six plane tests on a box (MakeFrustumPlanes,
+// renderer_zbuffer.cc): near, far, before the first and past the last
+// column, likewise rows.
 struct FrustumPlanes {
   double a[6][3], abs_a[6][3], m[6][3], b[6];
 };
-FrustumPlanes MakeFrustumPlanes(const FrameProjector& p, int w, int h);
+FrustumPlanes MakeFrustumPlanes(const FrameProjector& p,
+                                int w,
+                                int h,
+                                double margin_px = 0.0);
 
 // Sets culled[g - g_begin] for groups [g_begin, g_end) of soa: 1 when no
-// point of the group's box can pass the radius-0 path's per-point test, as
-// all of it lies before the near plane, beyond the far plane or beyond one
-// side of the image by a margin (1e-5 of the magnitudes involved) at least 20x
-// the float rounding of the per-point computation. Culling therefore never
-// changes the output.
+// point of the group's box can pass the per-point test of a path whose
+// splats reach at most margin_px - 1 pixels from the projection (0: the
+// radius-0 path's single pixel), as all of it lies before the near plane,
+// beyond the far plane or beyond one side of the grown image by a margin
+// (1e-5 of the magnitudes involved) at least 20x the float rounding of the
+// per-point computation. Culling therefore never changes the output.
 void CullGroups(const PackedCloud& soa,
                 const FrustumPlanes& planes,
                 int g_begin,
@@ -262,7 +267,7 @@ struct Scratch {
   std::vector<float> pu, pv, pz;  // soft: projected coordinates per point
   std::vector<int32_t> cand, order, order_tmp;   // soft: visible points
   std::vector<uint32_t> zbits, zbits_tmp, hist;  // soft: radix sort
-  std::vector<int32_t> index;  // resolved point index per pixel (-1 = none)
+  std::vector<int32_t> index;   // resolved point index per pixel (-1 = none)
   std::vector<uint8_t> culled;  // zbuffer radius 0: groups outside the view
   // zbuffer, footprint splats: per point of a block its magnification, and
   // the magnified points' entries.

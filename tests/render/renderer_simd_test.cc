@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <random>
 
@@ -140,7 +141,11 @@ TEST(RendererSimd, RadiusZeroTailsBordersAndPlanesMatchScalar) {
 // pixel down to 1e-5 pixel (about one float ulp at u = 64), the near and far
 // planes at relative offsets from 1e-2 down to 1e-7, and exactly on them; so
 // some groups lie just outside and others hold points just inside.
-PointCloud BoundaryCloud(const PinholeCamera& camera, double near, double far) {
+// With `margin_px`, the image's sides are those of the image grown by it.
+PointCloud BoundaryCloud(const PinholeCamera& camera,
+                         double near,
+                         double far,
+                         double margin_px = 0.0) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const double offsets[] = {-1e-2, -1e-4, -1e-6, -1e-7, 0.0, 1e-7, 1e-6, 1e-4};
@@ -160,7 +165,8 @@ PointCloud BoundaryCloud(const PinholeCamera& camera, double near, double far) {
       if (side < 4) {
         double& c = side < 2 ? u : v;
         const double size = side < 2 ? camera.width : camera.height;
-        c = side % 2 == 0 ? -0.5 - d * 100 : size - 0.5 + d * 100;
+        c = side % 2 == 0 ? -0.5 - margin_px - d * 100
+                          : size - 0.5 + margin_px + d * 100;
       } else {
         z = side == 4 ? near * (1 - d) : far * (1 + d);
       }
@@ -240,6 +246,81 @@ TEST(RendererSimd, CullingSkipsOnlyPointsThatAreNotDrawn) {
     ExpectSameFrames(with_set, with_set_unculled, what + " moving set");
     EXPECT_EQ(with_set.frames[0].num_projected, 300) << what;
     SetRendererSimdEnabled(previous_simd);
+  }
+}
+
+// The disk and footprint paths cull with their reach: the image grown by the
+// largest half-extent they draw plus one pixel. Same bytes and counts with
+// culling on and off for boxes hugging every side of the grown view, for
+// disks of radius 1 and 2.5, and for footprints (magnified up to the cap of
+// 8, camera-facing and with surface axes).
+TEST(RendererSimd, DiskAndFootprintCullingSkipsOnlyPointsThatAreNotDrawn) {
+  const PinholeCamera camera(52, 48, 31.5, 23.5, 64, 48);
+  const double near = 0.5, far = 40.0;
+  const std::vector<Rigid3d> poses = {
+      Rigid3d(), Rigid3d(QuaternionFromAngleAxis(Eigen::Vector3d(0, 0.3, 0)),
+                         Eigen::Vector3d(0.5, 0, 0))};
+  struct Case {
+    const char* name;
+    double radius;
+    bool footprints;
+    bool axes;
+  };
+  const Case cases[] = {{"disk r=1", 1.0, false, false},
+                        {"disk r=2.5", 2.5, false, false},
+                        {"footprint", 0.0, true, false},
+                        {"footprint, axes", 0.0, true, true}};
+  const double max_magnification = 8.0;
+  for (const Case& c : cases) {
+    const double reach =
+        c.footprints ? std::max({c.radius, 0.5, 0.5 * max_magnification})
+                     : c.radius;
+    PointCloud cloud = BoundaryCloud(camera, near, far, reach + 1.0);
+    if (c.footprints) {
+      // Footprints from 0.5 to 12 capture pixels at the point's depth, so
+      // some points are drawn magnified up to the cap; axes as two
+      // perpendicular patch vectors of that length.
+      std::mt19937 rng(5);
+      std::uniform_real_distribution<float> pixels(0.5f, 12.0f);
+      for (const Eigen::Vector3f& p : cloud.positions) {
+        const float fp = pixels(rng) * std::abs(p.z()) / 52.0f;
+        cloud.footprints.push_back(fp);
+        if (c.axes) {
+          cloud.footprint_u.emplace_back(fp, 0.0f, 0.3f * fp);
+          cloud.footprint_v.emplace_back(0.0f, fp, 0.0f);
+        }
+      }
+    }
+    for (const bool simd : {true, false}) {
+      RenderOptions options;
+      options.width = camera.width;
+      options.height = camera.height;
+      options.near = near;
+      options.far = far;
+      options.radius_px = c.radius;
+      options.output_index = true;
+      options.num_threads = 1;
+      if (c.footprints) {
+        options.splat_size = SplatSize::kFootprint;
+        options.max_footprint_magnification = max_magnification;
+      }
+      const bool previous_simd = SetRendererSimdEnabled(simd);
+      const std::string what =
+          std::string(c.name) + (simd ? " simd" : " scalar");
+      RenderResult culled, unculled;
+      RenderFramesInto(cloud, {camera}, poses, options, &culled);
+      const bool previous = SetRendererCullingEnabled(false);
+      RenderFramesInto(cloud, {camera}, poses, options, &unculled);
+      SetRendererCullingEnabled(previous);
+      SetRendererSimdEnabled(previous_simd);
+      ExpectSameFrames(culled, unculled, what);
+      // Not vacuous: points on both sides of the grown view are drawn and
+      // skipped.
+      EXPECT_GT(culled.frames[0].num_projected, 2000) << what;
+      EXPECT_LT(culled.frames[0].num_projected,
+                static_cast<int64_t>(cloud.size()) - 2000)
+          << what;
+    }
   }
 }
 
