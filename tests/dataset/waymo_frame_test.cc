@@ -41,9 +41,10 @@ void SetTransform(const Eigen::Matrix4d& m, wod::Transform* t) {
 
 // A small frame of one FRONT camera (64x48 JPEG) looking along the vehicle's
 // +x from 1.5 m up, one vehicle box 10 m ahead and its projected label, one
-// empty TOP laser with its calibration. The fuzz seed
-// fuzz/corpus/waymo_frame/synthetic_frame.tfrecord is this frame (written by
-// WaymoFrame.SyntheticFrameReadsBack with GEODRIVE_WRITE_FUZZ_SEEDS=1).
+// empty TOP laser with its calibration. The fuzz seeds
+// fuzz/corpus/waymo_frame/synthetic_frame.pb and
+// fuzz/corpus/tfrecord/synthetic_frame.tfrecord are this frame, written by
+// WaymoFrame.SyntheticFrameReadsBack with GEODRIVE_WRITE_FUZZ_SEEDS=1.
 wod::Frame SyntheticFrame() {
   wod::Frame frame;
   frame.mutable_context()->set_name("synthetic_segment");
@@ -129,11 +130,12 @@ TEST(WaymoFrame, SyntheticFrameReadsBack) {
   WriteTfRecordFile(path, {Serialized(SyntheticFrame())});
   if (std::getenv("GEODRIVE_WRITE_FUZZ_SEEDS") != nullptr) {
     const std::string seeds = std::string(GEODRIVE_SOURCE_DIR) + "/fuzz/corpus";
-    for (const char* target : {"waymo_frame", "tfrecord"}) {
-      std::filesystem::create_directories(seeds + "/" + target);
-      WriteTfRecordFile(seeds + "/" + target + "/synthetic_frame.tfrecord",
-                        {Serialized(SyntheticFrame())});
-    }
+    std::filesystem::create_directories(seeds + "/tfrecord");
+    std::filesystem::create_directories(seeds + "/waymo_frame");
+    WriteTfRecordFile(seeds + "/tfrecord/synthetic_frame.tfrecord",
+                      {Serialized(SyntheticFrame())});
+    test::WriteFile(seeds + "/waymo_frame/synthetic_frame.pb",
+                    Serialized(SyntheticFrame()));
   }
   const std::vector<WaymoFrame> frames = ReadWaymoFrames(path);
   ASSERT_EQ(frames.size(), 1u);
