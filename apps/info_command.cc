@@ -4,8 +4,11 @@
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 
 #include "apps/cli/cli.h"
+#include "apps/info_waymo.h"
+#include "geodrive_version.h"
 #include "geometry/image_io.h"
 #include "geometry/npy.h"
 #include "geometry/npz.h"
@@ -14,6 +17,7 @@
 #include "geometry/trajectory_io.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
+#include "geometry/util/plugin.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -83,6 +87,28 @@ void PrintReconstruction(const std::string& path, ReconstructionFormat format) {
             << "\n";
 }
 
+// `info FILE.tfrecord`: the Waymo reader links protobuf, whose loading adds
+// milliseconds to every start-up (about what the rest of `geodrive --version`
+// costs), so it lives in the commands plugin, loaded for a .tfrecord only
+// (sanitizer builds link everything in).
+void DescribeWaymo(const std::string& path) {
+#ifdef GEODRIVE_COMMANDS_BUILT_IN
+  DescribeWaymoSegment(path);
+#else
+  const char* const kPlugin = "libgeodrive-commands.so";
+  const CommandPluginInfo plugin = reinterpret_cast<CommandPluginEntry>(
+      LoadPluginSymbol(kPlugin, kCommandPluginEntry))();
+  if (plugin.version == nullptr ||
+      std::string(plugin.version) != GEODRIVE_VERSION) {
+    throw std::runtime_error(std::string(kPlugin) + " is version " +
+                             (plugin.version ? plugin.version : "?") +
+                             ", this program " + GEODRIVE_VERSION);
+  }
+  reinterpret_cast<DescribeWaymoSegmentEntry>(
+      LoadPluginSymbol(kPlugin, kDescribeWaymoSegmentSymbol))(path);
+#endif
+}
+
 int RunInfo(const std::string& path,
             const std::string& format,
             const std::string& to_tum) {
@@ -145,6 +171,10 @@ int RunInfo(const std::string& path,
               << h.NumElements() << " elements\n";
     return kExitOk;
   }
+  if (EndsWith(name, ".tfrecord")) {
+    DescribeWaymo(path);
+    return kExitOk;
+  }
   if (EndsWith(name, ".pcd.bin")) {
     PrintCloud(path, "nuScenes LIDAR_TOP sweep (float32 x 5)",
                ReadNuscenesLidarBin(path));
@@ -201,18 +231,21 @@ int RunInfo(const std::string& path,
   ThrowInputError(
       path,
       "unknown file type (expected .npy, .npz, .pcd.bin, .bin, .ply, .pcd, "
-      ".png, .jpg, a .txt trajectory or a reconstruction folder)");
+      ".png, .jpg, a .txt trajectory, a Waymo .tfrecord or a reconstruction "
+      "folder)");
 }
 
 CommandRunner SetupInfo(CLI::App& app) {
   auto path = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("auto");
-  app.add_option("file", *path,
-                 "File to describe (.npy, .npz, .pcd.bin, .bin, .ply, .pcd, "
-                 "image, trajectory .txt), or a reconstruction: a MonST3R or "
-                 "CUT3R folder, VGGT predictions.npz, Depth Anything 3 "
-                 "results.npz, MegaSaM *_sgd_cvd_hr.npz / *_droid.npz, our "
-                 "generic npz (docs/RECONSTRUCTIONS.md)")
+  app.add_option(
+         "file", *path,
+         "File to describe (.npy, .npz, .pcd.bin, .bin, .ply, .pcd, "
+         "image, trajectory .txt, Waymo Open Dataset v1 .tfrecord: "
+         "frames, poses, camera calibrations), or a reconstruction: "
+         "a MonST3R or CUT3R folder, VGGT predictions.npz, Depth Anything 3 "
+         "results.npz, MegaSaM *_sgd_cvd_hr.npz / *_droid.npz, our "
+         "generic npz (docs/RECONSTRUCTIONS.md)")
       ->required();
   app.add_option("--format", *format,
                  "For .txt files: monst3r (t x y z qw qx qy qz), tum (t x y z "
@@ -236,7 +269,7 @@ GEODRIVE_REGISTER_COMMAND(
     info,
     "info",
     "Print what a file is (npy, npz, point cloud, trajectory, image, "
-    "reconstruction)",
+    "reconstruction, Waymo TFRecord)",
     SetupInfo);
 
 }  // namespace geodrive

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Start-up: `geodrive` loads no heavy library at start-up. Fails when
 #  - the executable links (directly or not, `ldd`) LibTorch, VTK, GDAL, OpenCV's imgcodecs or
-#    videoio, FFmpeg, PCL or Ceres: those belong to the commands plugin;
+#    videoio, FFmpeg, PCL, Ceres or protobuf: those belong to the commands plugin;
 #  - the commands plugin links LibTorch, VTK, GDAL, OpenCV's imgcodecs or videoio (LibTorch is
 #    the deep-metrics plugin's alone, loaded by `eval --metrics lpips|fid|fvd`);
 #  - `geodrive --version` or `geodrive info FILE.npy` opens the commands plugin (LD_DEBUG), or
@@ -23,7 +23,7 @@ forbid() {  # FILE PATTERN
   fi
   echo "$(basename "$1"): $(ldd "$1" | grep -c '=>') shared libraries"
 }
-forbid "$exe" "$never|libavcodec|libavformat|libswscale|libpcl|libceres|libopencv_imgproc"
+forbid "$exe" "$never|libavcodec|libavformat|libswscale|libpcl|libceres|libopencv_imgproc|libprotobuf"
 forbid "$plugin" "$never"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

@@ -130,5 +130,38 @@ TEST(InfoCommand, TrajectoryFilesUseTheirNamedOrder) {
   ExpectOneLineError(dir + "/bad_traj.txt", "line 2: expected 8 numbers");
 }
 
+TEST(InfoCommand, WaymoTfrecordPrintsFramesPosesAndCalibrations) {
+  std::string out;
+  ASSERT_EQ(
+      Info(test::RealDataPath("waymo_one_frame/pvps_data_one_frame.tfrecord"),
+           &out),
+      0)
+      << out;
+  EXPECT_THAT(out, HasSubstr("Waymo Open Dataset v1 TFRecord, 1 frame(s), "
+                             "segment 1024360143612057520_3580_000_3600_000"));
+  EXPECT_THAT(out, HasSubstr("frame 0: timestamp 1553735853462203 us, "
+                             "world_from_vehicle [0.721910 0.691875"));
+  EXPECT_THAT(out, HasSubstr("75 laser_labels"));
+  EXPECT_THAT(out, HasSubstr("5 lasers, no range images"));
+  EXPECT_THAT(out, HasSubstr("FRONT: 1920x1280, f_u 2044.51"));
+  EXPECT_THAT(out, HasSubstr("SIDE_RIGHT: 1920x886"));
+  EXPECT_THAT(out, HasSubstr("rolling shutter LEFT_TO_RIGHT"));
+  std::cout << out;
+}
+
+TEST(InfoCommand, BrokenTfrecordExitsTwoWithOneLine) {
+  const std::string real = test::ReadFile(
+      test::RealDataPath("waymo_one_frame/pvps_data_one_frame.tfrecord"));
+  ASSERT_GT(real.size(), 1000u);
+  const std::string dir = test::MakeTempDir("info_tfrecord");
+  test::WriteFile(dir + "/cut.tfrecord", real.substr(0, 1000));
+  ExpectOneLineError(dir + "/cut.tfrecord",
+                     "record 0 (at byte 0): truncated data");
+  std::string flipped = real;
+  flipped[500] ^= 0x10;
+  test::WriteFile(dir + "/flipped.tfrecord", flipped);
+  ExpectOneLineError(dir + "/flipped.tfrecord", "data CRC mismatch");
+}
+
 }  // namespace
 }  // namespace geodrive
