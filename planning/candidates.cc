@@ -220,6 +220,17 @@ std::vector<Candidate> ReadCandidates(const std::string& path,
   return {c};
 }
 
+Candidate ShiftLaterally(const Candidate& candidate,
+                         double offset,
+                         const std::string& suffix) {
+  Candidate out = candidate;
+  out.name += suffix;
+  out.source += " shifted " + std::to_string(offset) + " m";
+  for (Rigid3d& pose : out.ego0_from_ego.world_from_cam)
+    pose.translation += pose.rotation * Eigen::Vector3d(0, offset, 0);
+  return out;
+}
+
 void WriteCandidateJsonl(const std::string& path, const Candidate& candidate) {
   std::string out;
   char buf[256];

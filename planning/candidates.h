@@ -77,6 +77,12 @@ std::vector<Candidate> ReadCandidatesJsonl(const std::string& path,
 // Writes a candidate as JSON lines (t, x, y, z, yaw per waypoint; %.9g).
 void WriteCandidateJsonl(const std::string& path, const Candidate& candidate);
 
+// The candidate moved sideways by `offset` metres (+ to the left) at every
+// waypoint, along each pose's own left axis (y), named "<name>" + suffix.
+Candidate ShiftLaterally(const Candidate& candidate,
+                         double offset,
+                         const std::string& suffix);
+
 // Ego pose in ego0 from a planar waypoint (x, y, z in metres, yaw in radians
 // about z).
 Rigid3d EgoPose(double x, double y, double z, double yaw);

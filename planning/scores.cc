@@ -143,43 +143,85 @@ struct PointGrid {
 // the lowest point; a cell's local ground is the lowest of the cells within
 // ground_window; a point is ground up to ground_margin above it, an obstacle
 // up to obstacle_max_height.
-void SegmentGround(const PointCloud& cloud,
+void SegmentGround(const PlanningScene& scene,
                    const PlanScoreOptions& o,
-                   PointGrid* ground,
-                   PointGrid* obstacles) {
-  ground->cell = o.ground_cell;
-  obstacles->cell = std::max(o.ground_cell, 2.0);
+                   std::vector<PointClass>* labels) {
+  const PointCloud& cloud = scene.static_cloud;
+  labels->assign(cloud.positions.size(), PointClass::kOther);
   const double cell = o.ground_cell;
+  // Cells of one sweep: (i, j) within 2^23 cells of the origin (thousands of
+  // km) and the sweep in the top byte keep the key unique.
+  auto key = [&](size_t point, int64_t i, int64_t j) {
+    const int64_t sweep =
+        scene.static_cloud_sweep.empty() ? 0 : scene.static_cloud_sweep[point];
+    return CellKey(i, j) ^ (sweep << 56);
+  };
   auto index = [cell](double v) {
     return static_cast<int64_t>(std::floor(v / cell));
   };
-  std::unordered_map<int64_t, float> lowest;
-  for (const Eigen::Vector3f& p : cloud.positions) {
-    if (!p.allFinite()) continue;
-    const int64_t key = CellKey(index(p.x()), index(p.y()));
-    auto [it, added] = lowest.emplace(key, p.z());
-    if (!added) it->second = std::min(it->second, p.z());
+  const bool ranged = !scene.sweep_origins.empty();
+  std::vector<char> usable(cloud.positions.size());
+  for (size_t n = 0; n < usable.size(); ++n) {
+    const Eigen::Vector3f& p = cloud.positions[n];
+    bool ok = p.allFinite() && std::abs(p.x()) < cell * (1 << 22) &&
+              std::abs(p.y()) < cell * (1 << 22);
+    if (ok && ranged) {
+      const int32_t sweep =
+          scene.static_cloud_sweep.empty() ? 0 : scene.static_cloud_sweep[n];
+      ok = (p.cast<double>() - scene.sweep_origins[sweep]).head<2>().norm() <=
+           o.max_point_range;
+    }
+    usable[n] = ok;
   }
+  // Per cell its three lowest heights: the third lowest (or the highest of
+  // fewer) is the cell's ground, so that a stray point below the ground
+  // (multipath, noise) does not lower it.
+  struct Lowest {
+    float z[3];
+    int n = 0;
+    void Add(float v) {
+      if (n < 3) {
+        z[n++] = v;
+      } else if (v < z[2]) {
+        z[2] = v;
+      } else {
+        return;
+      }
+      std::sort(z, z + n);
+    }
+    float Ground() const { return z[n - 1]; }
+  };
+  std::unordered_map<int64_t, Lowest> lowest;
+  for (size_t n = 0; n < cloud.positions.size(); ++n) {
+    const Eigen::Vector3f& p = cloud.positions[n];
+    if (!usable[n]) continue;
+    lowest[key(n, index(p.x()), index(p.y()))].Add(p.z());
+  }
+  // A cell's local ground: the median of the cell grounds within the window
+  // (robust to the few cells whose lowest points are on an obstacle).
   const int64_t w = static_cast<int64_t>(std::ceil(o.ground_window / cell));
   std::unordered_map<int64_t, float> local;
-  for (const Eigen::Vector3f& p : cloud.positions) {
-    if (!p.allFinite()) continue;
+  std::vector<float> around;
+  for (size_t n = 0; n < cloud.positions.size(); ++n) {
+    const Eigen::Vector3f& p = cloud.positions[n];
+    if (!usable[n]) continue;
     const int64_t i = index(p.x()), j = index(p.y());
-    auto [it, added] = local.emplace(CellKey(i, j), 0.0f);
+    auto [it, added] = local.emplace(key(n, i, j), 0.0f);
     if (added) {
-      float g = std::numeric_limits<float>::infinity();
+      around.clear();
       for (int64_t a = i - w; a <= i + w; ++a)
         for (int64_t b = j - w; b <= j + w; ++b)
-          if (const auto f = lowest.find(CellKey(a, b)); f != lowest.end())
-            g = std::min(g, f->second);
-      it->second = g;
+          if (const auto f = lowest.find(key(n, a, b)); f != lowest.end())
+            around.push_back(f->second.Ground());
+      std::nth_element(around.begin(), around.begin() + around.size() / 2,
+                       around.end());
+      it->second = around[around.size() / 2];
     }
     const double h = p.z() - it->second;
-    const Eigen::Vector2d xy(p.x(), p.y());
     if (h <= o.ground_margin) {
-      ground->Add(xy);
+      (*labels)[n] = PointClass::kGround;
     } else if (h <= o.obstacle_max_height) {
-      obstacles->Add(xy);
+      (*labels)[n] = PointClass::kObstacle;
     }
   }
 }
@@ -258,8 +300,9 @@ void ScoreDrivable(const PointGrid& ground,
       static_cast<int>(std::ceil(o.ego_width / o.footprint_spacing)) + 1;
   int64_t over = 0, total = 0;
   double clearance = o.clearance_search_radius;
-  for (const Rigid3d& pose : c.ego0_from_ego.world_from_cam) {
-    const Rect r = EgoRect(pose, o);
+  double clearance_time = c.ego0_from_ego.timestamps.front();
+  for (size_t k = 0; k < c.size(); ++k) {
+    const Rect r = EgoRect(c.ego0_from_ego.world_from_cam[k], o);
     for (int a = 0; a < nl; ++a) {
       for (int b = 0; b < nw; ++b) {
         const Eigen::Vector2d p = r.c +
@@ -269,10 +312,15 @@ void ScoreDrivable(const PointGrid& ground,
         ++total;
       }
     }
-    clearance = std::min(clearance, obstacles.Nearest(r, clearance));
+    const double d = obstacles.Nearest(r, clearance);
+    if (d < clearance) {
+      clearance = d;
+      clearance_time = c.ego0_from_ego.timestamps[k];
+    }
   }
   s->drivable_fraction = total > 0 ? double(over) / double(total) : kNaN;
   s->static_clearance = clearance;
+  s->static_clearance_time = clearance_time;
 }
 
 void ScoreLogged(const Trajectory& logged,
@@ -328,6 +376,13 @@ void Decide(const PlanScoreOptions& o, CandidateScores* s) {
     std::snprintf(buf, sizeof buf, "drivable fraction %.3f < %.3f",
                   s->drivable_fraction, o.min_drivable_fraction);
     s->reject_detail = buf;
+  } else if (s->static_clearance <= 0) {
+    s->reject = RejectReason::kOffDrivable;
+    std::snprintf(buf, sizeof buf,
+                  "footprint over an obstacle point (kerb, pole, wall) at "
+                  "%.3f s",
+                  s->static_clearance_time);
+    s->reject_detail = buf;
   } else if (!s->envelope_violation.empty()) {
     s->reject = RejectReason::kKinematics;
     s->reject_detail = s->envelope_violation;
@@ -378,6 +433,26 @@ bool PlanScoreOptions::Check() const {
          envelope.Check();
 }
 
+std::vector<PointClass> ClassifyStaticPoints(const PlanningScene& scene,
+                                             const PlanScoreOptions& options) {
+  GEODRIVE_CHECK_INPUT(
+      scene.static_cloud_sweep.empty() ||
+          scene.static_cloud_sweep.size() == scene.static_cloud.size(),
+      "planning scene: ", scene.static_cloud_sweep.size(), " sweep ids for ",
+      scene.static_cloud.size(), " static points");
+  const size_t num_sweeps =
+      scene.sweep_origins.empty()
+          ? 256
+          : std::min<size_t>(256, scene.sweep_origins.size());
+  for (int32_t sweep : scene.static_cloud_sweep)
+    GEODRIVE_CHECK_INPUT(sweep >= 0 && size_t(sweep) < num_sweeps,
+                         "planning scene: sweep id ", sweep, " is outside [0, ",
+                         num_sweeps - 1, "]");
+  std::vector<PointClass> labels;
+  SegmentGround(scene, options, &labels);
+  return labels;
+}
+
 Box3d EgoBox(const Rigid3d& ego0_from_ego, const PlanScoreOptions& o) {
   Box3d box;
   box.size = Eigen::Vector3d(o.ego_width, o.ego_length, o.ego_height);
@@ -416,7 +491,16 @@ PlanResult ScoreCandidates(const PlanningScene& scene,
   PointGrid ground, obstacles;
   const bool has_cloud = !scene.static_cloud.positions.empty();
   if (has_cloud) {
-    SegmentGround(scene.static_cloud, options, &ground, &obstacles);
+    const std::vector<PointClass> labels = ClassifyStaticPoints(scene, options);
+    ground.cell = options.ground_cell;
+    obstacles.cell = std::max(options.ground_cell, 2.0);
+    for (size_t n = 0; n < labels.size(); ++n) {
+      const Eigen::Vector3f& p = scene.static_cloud.positions[n];
+      if (labels[n] == PointClass::kGround)
+        ground.Add(Eigen::Vector2d(p.x(), p.y()));
+      if (labels[n] == PointClass::kObstacle)
+        obstacles.Add(Eigen::Vector2d(p.x(), p.y()));
+    }
     result.ground_points = CountPoints(ground);
     result.obstacle_points = CountPoints(obstacles);
   }

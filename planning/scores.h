@@ -10,6 +10,7 @@
 // BEV): nuScenes ego poses have z = 0 while box bottoms vary by metres, so
 // heights are not compared.
 
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -41,6 +42,14 @@ struct PlanningScene {
   // Static scene points in ego0 (metres), moving objects removed; empty: no
   // drivable or clearance scores.
   PointCloud static_cloud;
+  // The sweep (0..255) of each static point, or empty (one cloud). Ground is
+  // segmented per sweep: sweeps placed by ego poses with z = 0 (nuScenes)
+  // disagree in height on a slope by more than the ground margin.
+  std::vector<int32_t> static_cloud_sweep;
+  // The LiDAR position (ego0) of each sweep id, or empty. With it, points
+  // farther than PlanScoreOptions::max_point_range from their sweep's
+  // sensor are not classified (far rings are too sparse to find the ground).
+  std::vector<Eigen::Vector3d> sweep_origins;
   // The logged ego trajectory (ego0_from_ego, seconds since frame 0); empty:
   // no ADE/FDE.
   Trajectory logged;
@@ -50,7 +59,8 @@ struct PlanningScene {
 enum class RejectReason {
   kNone,
   kCollision,    // the ego box meets an obstacle box
-  kOffDrivable,  // too little of the footprint path is over ground
+  kOffDrivable,  // too little of the footprint path is over ground, or the
+                 // footprint covers an obstacle point
   kKinematics,   // outside the kinematic envelope
 };
 // "none", "collision", "off-drivable", "kinematics".
@@ -73,9 +83,13 @@ struct PlanScoreOptions {
   // ---- Ground segmentation of the static cloud (BEV grid).
   // Grid cell (m).
   double ground_cell = 0.5;
-  // The local ground height of a cell is the lowest point within this radius
-  // (m) of the cell, in cells rounded up.
+  // A cell's ground is its third-lowest point (or the highest of fewer);
+  // the local ground of a point is the median of the cell grounds within
+  // this radius (m) of its cell, in cells rounded up.
   double ground_window = 1.0;
+  // Points farther than this (BEV, m) from their sweep's sensor are left
+  // unclassified (when the scene gives sweep_origins).
+  double max_point_range = 20.0;
   // Points at most this high above the local ground are ground (m).
   double ground_margin = 0.12;
   // Points higher than ground_margin and at most this high above the local
@@ -138,6 +152,8 @@ struct CandidateScores {
   // Minimum BEV distance from the ego box to an obstacle point (m), at most
   // clearance_search_radius.
   double static_clearance = std::numeric_limits<double>::quiet_NaN();
+  // The waypoint time of that minimum (s).
+  double static_clearance_time = std::numeric_limits<double>::quiet_NaN();
   // ---- Kinematics.
   CandidateKinematics kinematics;
   // Empty when inside the envelope.
@@ -175,6 +191,15 @@ struct PlanResult {
 PlanResult ScoreCandidates(const PlanningScene& scene,
                            const std::vector<Candidate>& candidates,
                            const PlanScoreOptions& options = {});
+
+// Ground segmentation of the static cloud (docs/PLANNING.md), per point.
+enum class PointClass : uint8_t {
+  kOther,     // too high (trees, bridges) or not finite
+  kGround,    // at most ground_margin above the local ground
+  kObstacle,  // above ground_margin, at most obstacle_max_height
+};
+std::vector<PointClass> ClassifyStaticPoints(const PlanningScene& scene,
+                                             const PlanScoreOptions& options);
 
 // The ego box at an ego pose (ego0; z from the pose, bottom on it).
 Box3d EgoBox(const Rigid3d& ego0_from_ego, const PlanScoreOptions& options);

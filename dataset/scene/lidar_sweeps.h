@@ -1,5 +1,6 @@
 #pragma once
-// For the LiDAR scene sources of dataset/scene/ only: the clip's sweeps in a
+// For the LiDAR scene sources of dataset/scene/ and the planning scene
+// (planning/clip_scene.cc) only: the clip's sweeps in a
 // time window, motion-compensated with each sweep's ego pose into camera 0's
 // frame. Points near the ego vehicle (< 2.5 m horizontally) and inside any
 // annotated box of the sweep (grown 0.3 m) are dropped: what is left is the
