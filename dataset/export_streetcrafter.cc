@@ -65,7 +65,9 @@ std::string FrameName(int frame, const char* suffix) {
 }
 
 // {mask, value} as StreetCrafter's LiDAR depth: value = depth[mask] in
-// row-major order of mask, clipped to [0.1, 100] m.
+// row-major order of mask, clipped to [0.1, 100] m. Stored, not deflated
+// (numpy.savez): deflating the float values took three quarters of a clip's
+// export time for half the bytes (about 0.6 MB a 576x320 frame stored).
 void WriteDepthNpz(const std::string& path, const cv::Mat& depth) {
   NpyArray mask = NpyArray::Zeros(NpyDtype::kBool, {depth.rows, depth.cols});
   uint8_t* m = mask.MutableData<uint8_t>();
@@ -81,7 +83,8 @@ void WriteDepthNpz(const std::string& path, const cv::Mat& depth) {
   WriteNpz(path,
            {{"mask", std::move(mask)},
             {"value", NpyArray::Float32({static_cast<int64_t>(value.size())},
-                                        value.data())}});
+                                        value.data())}},
+           /*compress=*/false);
 }
 
 // Scenes for validation: the first round(fraction * scenes) in the order of a
