@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "geometry/util/input_file.h"
+#include "geometry/util/size_limits.h"
 
 namespace geodrive {
 
@@ -29,8 +30,8 @@ uint32_t MaskCrc32c(uint32_t crc);
 
 struct TfRecordReaderOptions {
   // The largest record read, in bytes: a longer declared length is an error
-  // before any allocation. A Waymo v1 frame with range images is 5-30 MB.
-  uint64_t max_record_bytes = uint64_t{1} << 30;
+  // before any allocation (SizeLimits: 1 GiB).
+  uint64_t max_record_bytes = SizeLimits::kMaxTfRecordBytes;
   // Check both CRCs of every record (a bad CRC is an error).
   bool verify_crc = true;
 

@@ -39,6 +39,9 @@ struct SizeLimits {
   static constexpr uint64_t kMaxExrHeaderBytes = 1 << 20;
   // Frames of one video read whole (ReadVideoFrames): an hour at 25 fps.
   static constexpr int64_t kMaxVideoFrames = 100000;
+  // One TFRecord record (a Waymo v1 frame is a few MB: a 200-frame segment
+  // is about 1 GB).
+  static constexpr uint64_t kMaxTfRecordBytes = uint64_t{1} << 30;
   // Decoded frames of one video held at once, RGB, plus kFrameOverheadBytes
   // a frame: 16 GiB.
   static constexpr int64_t kMaxVideoDecodeBytes = int64_t{16} << 30;
