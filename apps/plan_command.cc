@@ -57,9 +57,17 @@ std::vector<Candidate> GatherCandidates(const PlanArgs& a,
     const std::vector<double> speeds = scene.logged.SegmentSpeeds();
     lattice.initial_speed = speeds.empty() ? 0.0 : speeds.front();
     lattice.max_speed = std::max(lattice.max_speed, lattice.initial_speed);
+    // The clip's time span and frame count: one waypoint per frame.
     lattice.horizon_s = std::max(scene.logged.Duration(), 1.0);
-    lattice.dt_s = std::max(clip.FrameIntervalSeconds(), 0.05);
+    lattice.dt_s =
+        lattice.horizon_s / std::max<size_t>(scene.logged.size() - 1, 1);
     lattice.lane_change_s = std::min(lattice.lane_change_s, lattice.horizon_s);
+    // A denser grid than the library's default (15 x 8 x 7 cells), thinned
+    // to --sample evenly.
+    lattice.lateral_offsets.clear();
+    for (int k = -7; k <= 7; ++k) lattice.lateral_offsets.push_back(0.5 * k);
+    lattice.accelerations = {-3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0};
+    lattice.yaw_rates = {-0.15, -0.1, -0.05, 0.0, 0.05, 0.1, 0.15};
     lattice.max_candidates = a.sample;
     lattice.envelope = a.score.envelope;
     for (Candidate& c : SampleLattice(lattice)) out.push_back(std::move(c));
