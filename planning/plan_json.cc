@@ -25,6 +25,7 @@ nlohmann::json ScoresJson(const Candidate& c, const CandidateScores& s) {
       {"collides", s.collides},
       {"first_time_s", Number(s.first_collision_time)},
       {"first_with", s.first_collision_with},
+      {"first_with_category", s.first_collision_category},
       {"min_box_distance_m", Number(s.min_box_distance)},
       {"min_box_distance_time_s", Number(s.min_box_distance_time)},
       {"closest_obstacle", s.closest_obstacle}};

@@ -282,6 +282,7 @@ void ScoreCollision(const PlanningScene& scene,
       if (std::isnan(s->first_collision_time) || hi < s->first_collision_time) {
         s->first_collision_time = hi;
         s->first_collision_with = scene.obstacles[k].id;
+        s->first_collision_category = scene.obstacles[k].category;
       }
     }
     if (!std::isnan(s->first_collision_time)) s->collides = true;
@@ -368,7 +369,9 @@ void Decide(const PlanScoreOptions& o, CandidateScores* s) {
   char buf[160];
   if (s->collides) {
     s->reject = RejectReason::kCollision;
-    std::snprintf(buf, sizeof buf, "collision with %s at %.3f s",
+    std::snprintf(buf, sizeof buf, "collision with %s%s%s at %.3f s",
+                  s->first_collision_category.c_str(),
+                  s->first_collision_category.empty() ? "" : " ",
                   s->first_collision_with.c_str(), s->first_collision_time);
     s->reject_detail = buf;
   } else if (s->drivable_fraction < o.min_drivable_fraction) {

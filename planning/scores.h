@@ -140,6 +140,8 @@ struct CandidateScores {
   // Time of the first contact (s), NaN when none.
   double first_collision_time = std::numeric_limits<double>::quiet_NaN();
   std::string first_collision_with;
+  // Its category (ObstacleTrack::category; may be empty).
+  std::string first_collision_category;
   // Minimum BEV distance between the ego box and any obstacle box over the
   // candidate's time (m; 0 when they meet), when it happens (s) and with
   // what; +inf with no obstacles.
