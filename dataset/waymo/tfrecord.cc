@@ -52,18 +52,21 @@ void StoreLe(uint64_t v, int bytes, std::string* out) {
     out->push_back(static_cast<char>(v >> (8 * i)));
 }
 
-// Reads exactly `size` bytes at `offset` of `fd`; false on a short read.
-bool ReadAt(int fd, uint64_t offset, void* out, size_t size) {
+// Reads exactly `size` bytes at `offset` of `fd`; "" on success, else why
+// not (a read error, or an end of file before the size fstat gave: the file
+// changed while it was read).
+std::string ReadAt(int fd, uint64_t offset, void* out, size_t size) {
   uint8_t* p = static_cast<uint8_t*>(out);
   size_t done = 0;
   while (done < size) {
     const ssize_t n =
         ::pread(fd, p + done, size - done, static_cast<off_t>(offset + done));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return false;
+    if (n < 0) return std::strerror(errno);
+    if (n == 0) return "the file ended early: it changed while being read";
     done += static_cast<size_t>(n);
   }
-  return true;
+  return "";
 }
 
 }  // namespace
@@ -104,8 +107,8 @@ bool TfRecordReader::ReadHeader(uint64_t* length) {
                           " bytes)"));
   }
   uint8_t header[kHeaderBytes];
-  if (!ReadAt(file_.fd(), offset_, header, kHeaderBytes))
-    Fail("cannot read the header (" + std::string(std::strerror(errno)) + ")");
+  const std::string error = ReadAt(file_.fd(), offset_, header, kHeaderBytes);
+  if (!error.empty()) Fail("cannot read the header (" + error + ")");
   *length = LoadLe64(header);
   if (options_.verify_crc) {
     const uint32_t stored = LoadLe32(header + 8);
@@ -137,10 +140,10 @@ bool TfRecordReader::Next(std::string* data) {
   data->resize(length);
   uint8_t footer[kFooterBytes];
   const uint64_t data_offset = offset_ + kHeaderBytes;
-  if (!ReadAt(file_.fd(), data_offset, data->data(), length) ||
-      !ReadAt(file_.fd(), data_offset + length, footer, kFooterBytes)) {
-    Fail("cannot read the data (" + std::string(std::strerror(errno)) + ")");
-  }
+  std::string error = ReadAt(file_.fd(), data_offset, data->data(), length);
+  if (error.empty())
+    error = ReadAt(file_.fd(), data_offset + length, footer, kFooterBytes);
+  if (!error.empty()) Fail("cannot read the data (" + error + ")");
   if (options_.verify_crc) {
     const uint32_t stored = LoadLe32(footer);
     const uint32_t actual = MaskCrc32c(Crc32c(data->data(), length));
