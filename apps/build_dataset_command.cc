@@ -54,7 +54,7 @@ bool UnderMpiLauncher() {
 
 int Run(Args& a) {
   if (!a.merge.empty()) {
-    const int n = MergeBuildOutputs(a.merge);
+    const int n = MergeBuildOutputs(a.merge, a.options.export_options);
     std::cout << "merged " << n << " pairs into " << a.merge
               << "/manifest.jsonl; report: " << a.merge << "/report.html\n";
     return kExitOk;
@@ -114,7 +114,7 @@ int Run(Args& a) {
     MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
     MPI_Allreduce(MPI_IN_PLACE, &interrupted, 1, MPI_INT, MPI_MAX,
                   MPI_COMM_WORLD);
-    if (rank == 0) MergeBuildOutputs(o.out);
+    if (rank == 0) MergeBuildOutputs(o.out, o.export_options);
     MPI_Barrier(MPI_COMM_WORLD);
     MPI_Finalize();
   }
@@ -326,7 +326,8 @@ CommandRunner Setup(CLI::App& app) {
   AddPairOptions(app, *a);
   app.add_option("--merge", a->merge,
                  "Merge the shard outputs in this folder (manifest, failures, "
-                 "report) and exit");
+                 "the exports' indexes split by --val-fraction and "
+                 "--split-seed, report) and exit");
   return [a] {
     if (a->merge.empty()) {
       GEODRIVE_CHECK_INPUT(

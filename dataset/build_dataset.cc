@@ -868,7 +868,8 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   return summary;
 }
 
-int MergeBuildOutputs(const std::string& out) {
+int MergeBuildOutputs(const std::string& out,
+                      const ExportOptions& export_options) {
   GEODRIVE_CHECK_INPUT(fs::is_directory(out + "/pairs"), out,
                        ": not a build-dataset output (no pairs/)");
   const OutputFolderLock lock(out + "/.lock", out + ": output folder",
@@ -877,7 +878,7 @@ int MergeBuildOutputs(const std::string& out) {
   const int n = RewriteLogs(out, run ? &*run : nullptr);
   // Every format's index (a no-op for a format no pair has).
   for (const ExportFormat format : AllExportFormats())
-    CreateExporter(format)->Finish(out);
+    CreateExporter(format, export_options)->Finish(out);
   WriteBuildReport(out, nullptr);
   return n;
 }

@@ -189,9 +189,12 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions options);
 
 // Merges shard outputs in `out`: manifest.jsonl and failures.jsonl rebuilt
 // (sorted by clip id) from the pair folders of the last run's clips, options
-// and inputs (OUT/.run.json) and the shard failure logs, and report.html
-// written. Holds OUT/.lock exclusively. Returns the number of pairs.
-int MergeBuildOutputs(const std::string& out);
+// and inputs (OUT/.run.json) and the shard failure logs, every export's index
+// (with `export_options`' split: pass the shards' --val-fraction and
+// --split-seed) and report.html written. Holds OUT/.lock exclusively.
+// Returns the number of pairs.
+int MergeBuildOutputs(const std::string& out,
+                      const ExportOptions& export_options = {});
 
 // Writes OUT/report.html: one self-contained page (inline CSS and script;
 // links only to the pair files) with the counts, quality histograms, a

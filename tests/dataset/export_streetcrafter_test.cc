@@ -235,5 +235,43 @@ TEST(ExportStreetCrafter, DepthNpzIsTheTrueZDepthAtItsPixels) {
   }
 }
 
+// The same files through Python, PIL and NumPy, the way the trainer's
+// dataset class and the 3DGS reader open them
+// (tests/dataset/streetcrafter_loader_check.py).
+TEST(ExportStreetCrafter, PythonMirrorOfTheLoaderAcceptsIt) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("PIL");
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
+  std::string log;
+  EXPECT_EQ(
+      test::RunCommand(std::string(test::kDebianPython) +
+                           " " GEODRIVE_SOURCE_DIR
+                           "/tests/dataset/streetcrafter_loader_check.py " +
+                           Export() + "/streetcrafter 2",
+                       &log),
+      0)
+      << log;
+  std::printf("%s", log.c_str());
+}
+
+// Shards then --merge give the same lists as one run, when the merge is
+// given the shards' split options.
+TEST(ExportStreetCrafter, ShardsAndMergeGiveTheSameLists) {
+  const std::string out = test::MakeTempDir("export_sc_shards");
+  for (int i = 0; i < 2; ++i) {
+    BuildDatasetOptions o = Options(out);
+    o.shard_index = i;
+    o.shard_count = 2;
+    const BuildDatasetSummary s = BuildDataset(o);
+    EXPECT_EQ(s.failed, 0);
+  }
+  EXPECT_FALSE(fs::exists(out + "/streetcrafter"));
+  MergeBuildOutputs(out, Options(out).export_options);
+  for (const std::string split : {"train", "val"}) {
+    const std::string name = "/streetcrafter/meta_info_" + split + ".json";
+    EXPECT_EQ(test::ReadFile(out + name), test::ReadFile(Export() + name))
+        << split;
+  }
+}
+
 }  // namespace export_streetcrafter_test
 }  // namespace geodrive
