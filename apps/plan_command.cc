@@ -30,54 +30,6 @@ struct PlanArgs {
   PlanScoreOptions score;
 };
 
-// The logged trajectory as a candidate, its lateral shifts, the files and
-// the lattice.
-std::vector<Candidate> GatherCandidates(const PlanArgs& a,
-                                        const DriveClip& clip,
-                                        const PlanningScene& scene) {
-  std::vector<Candidate> out;
-  Candidate logged;
-  logged.name = "logged";
-  logged.source = "the clip's ego poses";
-  logged.ego0_from_ego = scene.logged;
-  if (!a.no_logged) out.push_back(logged);
-  for (double d : a.shifts) {
-    for (double sign : {1.0, -1.0}) {
-      char suffix[32];
-      std::snprintf(suffix, sizeof suffix, "%+gm", sign * d);
-      out.push_back(ShiftLaterally(logged, sign * d, suffix));
-    }
-  }
-  for (const std::string& path : a.candidates) {
-    for (Candidate& c : ReadCandidates(path, clip.frames.front().ego_from_cam))
-      out.push_back(std::move(c));
-  }
-  if (a.sample > 0) {
-    LatticeOptions lattice;
-    const std::vector<double> speeds = scene.logged.SegmentSpeeds();
-    lattice.initial_speed = speeds.empty() ? 0.0 : speeds.front();
-    lattice.max_speed = std::max(lattice.max_speed, lattice.initial_speed);
-    // The clip's time span and frame count: one waypoint per frame.
-    lattice.horizon_s = std::max(scene.logged.Duration(), 1.0);
-    lattice.dt_s =
-        lattice.horizon_s / std::max<size_t>(scene.logged.size() - 1, 1);
-    lattice.lane_change_s = std::min(lattice.lane_change_s, lattice.horizon_s);
-    // A denser grid than the library's default (15 x 8 x 7 cells), thinned
-    // to --sample evenly.
-    lattice.lateral_offsets.clear();
-    for (int k = -7; k <= 7; ++k) lattice.lateral_offsets.push_back(0.5 * k);
-    lattice.accelerations = {-3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0};
-    lattice.yaw_rates = {-0.15, -0.1, -0.05, 0.0, 0.05, 0.1, 0.15};
-    lattice.max_candidates = a.sample;
-    lattice.envelope = a.score.envelope;
-    for (Candidate& c : SampleLattice(lattice)) out.push_back(std::move(c));
-  }
-  GEODRIVE_CHECK_INPUT(!out.empty(),
-                       "no candidates: give --candidates, --sample or "
-                       "--shifts, or drop --no-logged");
-  return out;
-}
-
 int Run(const PlanArgs& a) {
   CreateOutputDirectory(a.out);
   DriveDatasetOptions dso;
@@ -93,7 +45,14 @@ int Run(const PlanArgs& a) {
     ThrowInputError("--clip", e.what());
   }
   const PlanningScene scene = PlanningSceneFromClip(clip);
-  const std::vector<Candidate> candidates = GatherCandidates(a, clip, scene);
+  std::vector<Candidate> files;
+  for (const std::string& path : a.candidates) {
+    for (Candidate& c : ReadCandidates(path, clip.frames.front().ego_from_cam))
+      files.push_back(std::move(c));
+  }
+  const std::vector<Candidate> candidates =
+      GatherCandidates(scene, !a.no_logged, a.shifts, std::move(files),
+                       a.sample, a.score.envelope);
   const PlanResult result = ScoreCandidates(scene, candidates, a.score);
   WriteFileAtomic(a.out + "/plan.json",
                   PlanResultToJson(clip.id, candidates, result, a.score));

@@ -1,6 +1,8 @@
 #include "planning/clip_scene.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 
 #include "dataset/scene/lidar_sweeps.h"
@@ -77,6 +79,63 @@ PlanningScene PlanningSceneFromClip(const DriveClip& clip,
     }
   }
   return scene;
+}
+
+Candidate LoggedCandidate(const PlanningScene& scene) {
+  Candidate logged;
+  logged.name = "logged";
+  logged.source = "the clip's ego poses";
+  logged.ego0_from_ego = scene.logged;
+  return logged;
+}
+
+LatticeOptions SceneLatticeOptions(const PlanningScene& scene,
+                                   int max_candidates,
+                                   const KinematicEnvelope& envelope) {
+  LatticeOptions lattice;
+  const std::vector<double> speeds = scene.logged.SegmentSpeeds();
+  lattice.initial_speed = speeds.empty() ? 0.0 : speeds.front();
+  lattice.max_speed = std::max(lattice.max_speed, lattice.initial_speed);
+  lattice.horizon_s = std::max(scene.logged.Duration(), 1.0);
+  lattice.dt_s =
+      lattice.horizon_s /
+      static_cast<double>(std::max<size_t>(scene.logged.size(), 2) - 1);
+  lattice.lane_change_s = std::min(lattice.lane_change_s, lattice.horizon_s);
+  lattice.lateral_offsets.clear();
+  for (int k = -7; k <= 7; ++k) lattice.lateral_offsets.push_back(0.5 * k);
+  lattice.accelerations = {-3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0};
+  lattice.yaw_rates = {-0.15, -0.1, -0.05, 0.0, 0.05, 0.1, 0.15};
+  lattice.max_candidates = max_candidates;
+  lattice.envelope = envelope;
+  return lattice;
+}
+
+std::vector<Candidate> GatherCandidates(const PlanningScene& scene,
+                                        bool with_logged,
+                                        const std::vector<double>& shifts,
+                                        std::vector<Candidate> extra,
+                                        int sample,
+                                        const KinematicEnvelope& envelope) {
+  std::vector<Candidate> out;
+  const Candidate logged = LoggedCandidate(scene);
+  if (with_logged) out.push_back(logged);
+  for (double d : shifts) {
+    for (double sign : {1.0, -1.0}) {
+      char suffix[32];
+      std::snprintf(suffix, sizeof suffix, "%+gm", sign * d);
+      out.push_back(ShiftLaterally(logged, sign * d, suffix));
+    }
+  }
+  for (Candidate& c : extra) out.push_back(std::move(c));
+  if (sample > 0) {
+    for (Candidate& c :
+         SampleLattice(SceneLatticeOptions(scene, sample, envelope)))
+      out.push_back(std::move(c));
+  }
+  GEODRIVE_CHECK_INPUT(!out.empty(),
+                       "no candidates: give candidate files, a lattice "
+                       "sample or shifts, or keep the logged trajectory");
+  return out;
 }
 
 }  // namespace geodrive
