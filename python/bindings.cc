@@ -39,6 +39,10 @@
 #include "geometry/trajectory_edit.h"
 #include "geometry/trajectory_json.h"
 #include "geometry/util/status.h"
+#include "planning/candidates.h"
+#include "planning/clip_scene.h"
+#include "planning/plan_json.h"
+#include "planning/scores.h"
 #include "render/boxes.h"
 #include "render/dynamic_edit.h"
 #include "render/renderer.h"
@@ -1104,6 +1108,58 @@ void TranslateException(std::exception_ptr p) {
 // thread count (the renderer draws each frame on one thread).
 void ForkedChildRunsOpenMPSerially() { omp_set_max_active_levels(0); }
 
+// ---- Planning ----
+
+// A candidate from an (N, 4) array of waypoints t, x, y, yaw (ego0).
+Candidate CandidateFromArray(const std::string& name, const CArray<double>& w) {
+  GEODRIVE_CHECK_INPUT(w.ndim() == 2 && w.shape(1) == 4, "candidate ", name,
+                       ": waypoints must be an (N, 4) array of t, x, y, yaw");
+  Candidate c;
+  c.name = name;
+  c.source = "candidate " + name;
+  for (py::ssize_t i = 0; i < w.shape(0); ++i) {
+    const double* r = w.data() + 4 * i;
+    c.ego0_from_ego.Add(r[0], EgoPose(r[1], r[2], 0.0, r[3]));
+  }
+  ValidateCandidate(c);
+  return c;
+}
+
+void BindPlanning(py::module_& m) {
+  m.def(
+      "plan_json",
+      [](const PyClip& clip, const std::vector<PathArg>& paths,
+         const std::vector<std::string>& names,
+         const std::vector<CArray<double>>& waypoints,
+         const std::vector<double>& shifts, int sample, bool with_logged) {
+        GEODRIVE_CHECK_INPUT(names.size() == waypoints.size(),
+                             "plan: one name per waypoint array");
+        GEODRIVE_CHECK_INPUT(sample >= 0 && sample <= 100000,
+                             "plan: sample must be in [0, 100000]");
+        std::vector<Candidate> extra;
+        for (size_t i = 0; i < names.size(); ++i)
+          extra.push_back(CandidateFromArray(names[i], waypoints[i]));
+        py::gil_scoped_release release;
+        GEODRIVE_CHECK_INPUT(!clip.clip.frames.empty(), "plan: empty clip");
+        std::vector<Candidate> files;
+        for (const PathArg& p : paths) {
+          for (Candidate& c :
+               ReadCandidates(p.value, clip.clip.frames.front().ego_from_cam))
+            files.push_back(std::move(c));
+        }
+        for (Candidate& c : extra) files.push_back(std::move(c));
+        const PlanningScene scene = PlanningSceneFromClip(clip.clip);
+        const PlanScoreOptions options;
+        const std::vector<Candidate> candidates = GatherCandidates(
+            scene, with_logged, shifts, std::move(files), sample);
+        const PlanResult result = ScoreCandidates(scene, candidates, options);
+        return PlanResultToJson(clip.clip.id, candidates, result, options);
+      },
+      py::arg("clip"), py::arg("paths"), py::arg("names"), py::arg("waypoints"),
+      py::arg("shifts"), py::arg("sample"), py::arg("with_logged"),
+      "plan.json's text for a clip's candidates (geodrive.plan parses it).");
+}
+
 }  // namespace
 }  // namespace geodrive
 
@@ -1119,4 +1175,5 @@ PYBIND11_MODULE(_core, m) {
   geodrive::BindEditedRender(m);
   geodrive::BindTrajectories(m);
   geodrive::BindMetrics(m);
+  geodrive::BindPlanning(m);
 }

@@ -10,6 +10,7 @@ children (multiprocessing), there on one thread per process.
 ``geodrive.torch.PairDataset`` reads built pairs for PyTorch.
 """
 import json as _json
+import os as _os
 
 from . import _core
 from ._args import check_methods as _check_methods
@@ -33,12 +34,13 @@ render_with_edits = _checked(_core.render_with_edits, _core)
 scene_sources = _checked(_core.scene_sources, _core)
 ssim = _checked(_core.ssim, _core)
 _read_meta_json = _checked(_core.read_meta_json, _core, "read_meta")
+_plan_json = _checked(_core.plan_json, _core, "plan")
 read_pair = _checked(_core.read_pair, _core)
 _read_pair = read_pair  # the name before read_pair was public
 
 __all__ = [
     "Clip", "ConditionScene", "Dataset", "ade_fde", "condition_scene",
-    "edit_trajectory", "open_dataset", "psnr", "read_manifest", "read_meta",
+    "edit_trajectory", "open_dataset", "plan", "psnr", "read_manifest", "read_meta",
     "read_pair", "read_trajectory", "read_video", "reconstruction_format", "render", "render_with_edits",
     "scene_sources", "ssim",
 ]
@@ -48,3 +50,31 @@ def read_meta(pair_dir):
     """A pair's meta.json (validated by the toolkit's reader) as a dict;
     pair_dir: str or os.PathLike."""
     return _json.loads(_read_meta_json(pair_dir))
+
+
+def plan(clip, candidates=(), shifts=(), sample=0, with_logged=True):
+    """Scores candidate ego trajectories against a clip's geometry (the
+    numbers of `geodrive plan`'s plan.json, docs/PLANNING.md) and returns one
+    dict per candidate, in scoring order: the logged trajectory (with_logged),
+    its lateral shifts by +-each of `shifts` (m), candidate files, waypoint
+    arrays, then `sample` lattice candidates. Each dict has name, rank, cost,
+    rejected, reject_reason, reject_detail, collision, drivable, kinematics
+    and logged.
+
+    candidates: paths (a .jsonl of waypoints or any trajectory file), (N, 4)
+    float arrays of t, x, y, yaw in the ego frame of the clip's first frame
+    (seconds, metres, radians), or dicts {"name": str, "waypoints": array}.
+    """
+    paths, names, arrays = [], [], []
+    for i, c in enumerate(candidates):
+        if isinstance(c, (str, bytes, _os.PathLike)):
+            paths.append(c)
+        elif isinstance(c, dict):
+            names.append(str(c.get("name", "candidate-%d" % i)))
+            arrays.append(c["waypoints"])
+        else:
+            names.append("candidate-%d" % i)
+            arrays.append(c)
+    text = _plan_json(clip, paths, names, arrays, [float(d) for d in shifts],
+                      int(sample), bool(with_logged))
+    return _json.loads(text)["candidates"]
