@@ -143,16 +143,19 @@ RigScene FuseRigScenes(const DriveClip& clip,
     keep.reserve(cloud.size());
     for (size_t i = 0; i < cloud.size(); ++i) {
       const Eigen::Vector3f& p = cloud.positions[i];
-      const double own = Frontality(cells[k].ToCam(p));
+      // The cheap tests first (most points are outside the other images);
+      // k's own frontality only when some j has the surface.
+      double own = 2.0;  // not computed yet (a cosine is at most 1)
       bool owned_elsewhere = false;
       for (size_t j = 0; j < views.size() && !owned_elsewhere; ++j) {
         if (j == k) continue;
         const Eigen::Vector3d q = cells[j].ToCam(p);
-        if (Frontality(q) <= own) continue;
         const int cell = cells[j].CellOf(q);
         if (cell < 0) continue;
-        owned_elsewhere =
-            std::abs(cells[j].zmin[cell] - q.z()) <= kSameSurface * q.z();
+        if (!(std::abs(cells[j].zmin[cell] - q.z()) <= kSameSurface * q.z()))
+          continue;
+        if (own > 1.5) own = Frontality(cells[k].ToCam(p));
+        owned_elsewhere = Frontality(q) > own;
       }
       if (!owned_elsewhere) keep.push_back(i);
     }
@@ -240,18 +243,29 @@ std::vector<SeamAgreement> RigSeamAgreement(
       "seam check: ", n, " channels, ", cameras.size(), " cameras, ",
       scene_from_cam.size(), " poses, ", depth.size(), " depth images");
   // Overlap and agreement of the pixels of a seen from b.
+  // Pixel (x, y) of a at depth d is q = R (d r) + t in b, r = ((x - cx) /
+  // fx, (y - cy) / fy, 1) (PinholeCamera::Unproject), then projected by b
+  // (PinholeCamera::Project); R and the rays are computed once.
   auto one_way = [&](size_t a, size_t b, SeamAgreement* s) {
     const Rigid3d b_from_a = scene_from_cam[b].Inverse() * scene_from_cam[a];
+    const Eigen::Matrix3d rot = b_from_a.rotation.toRotationMatrix();
+    const Eigen::Vector3d& t = b_from_a.translation;
     const PinholeCamera& ca = cameras[a];
     const PinholeCamera& cb = cameras[b];
+    std::vector<double> ray_x(depth[a].cols);
+    for (int x = 0; x < depth[a].cols; ++x) ray_x[x] = (x - ca.cx) / ca.fx;
     for (int y = 0; y < depth[a].rows; ++y) {
       const float* da = depth[a].ptr<float>(y);
+      const double ray_y = (y - ca.cy) / ca.fy;
+      // R r = column 0 * r_x + (column 1 * r_y + column 2).
+      const Eigen::Vector3d row_part = rot.col(1) * ray_y + rot.col(2);
       for (int x = 0; x < depth[a].cols; ++x) {
         if (!(da[x] > 0)) continue;
-        const Eigen::Vector3d q =
-            b_from_a * ca.Unproject(Eigen::Vector2d(x, y), da[x]);
+        const double d = da[x];
+        const Eigen::Vector3d q = (rot.col(0) * ray_x[x] + row_part) * d + t;
         if (q.z() <= 1e-6) continue;
-        const Eigen::Vector2d uv = cb.Project(q);
+        const Eigen::Vector2d uv(cb.fx * q.x() / q.z() + cb.cx,
+                                 cb.fy * q.y() / q.z() + cb.cy);
         const int u = static_cast<int>(std::lround(uv.x()));
         const int v = static_cast<int>(std::lround(uv.y()));
         if (u < 0 || v < 0 || u >= depth[b].cols || v >= depth[b].rows)
