@@ -7,7 +7,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git procps
   libeigen3-dev libpcl-dev libflann-dev libceres-dev libgoogle-glog-dev libgflags-dev liblzf-dev
   libopencv-dev libturbojpeg0-dev libspng-dev nlohmann-json3-dev libsimdjson-dev libzip-dev libopenexr-dev libcli11-dev
-  protobuf-compiler libprotobuf-dev
+  protobuf-compiler libprotobuf-dev zlib1g-dev
   libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libopenmpi-dev openmpi-bin

@@ -371,6 +371,12 @@ WaymoFrame ParseWaymoFrame(std::string_view bytes,
   for (const wod::Laser& laser : proto.lasers()) {
     if (HasRangeImage(laser.ri_return1()) || HasRangeImage(laser.ri_return2()))
       frame.has_range_images = true;
+    WaymoLaser out;
+    out.name = static_cast<WaymoLaserName>(laser.name());
+    out.return1 = laser.ri_return1().range_image_compressed();
+    out.return2 = laser.ri_return2().range_image_compressed();
+    out.top_pose = laser.ri_return1().range_image_pose_compressed();
+    frame.lasers.push_back(std::move(out));
   }
   CheckCameras(frame, ctx);
   return frame;

@@ -183,6 +183,20 @@ struct WaymoLaserCalibration {
   Eigen::Matrix4d vehicle_from_laser = Eigen::Matrix4d::Identity();
 };
 
+// One `Laser` message: its range images as stored (decoded by
+// dataset/waymo/waymo_range_image.h).
+struct WaymoLaser {
+  WaymoLaserName name = WaymoLaserName::kUnknown;
+  // RangeImage.range_image_compressed of the first and second return: zlib
+  // of a serialized MatrixFloat [H, W, 4]; empty when absent.
+  std::string return1;
+  std::string return2;
+  // TOP's ri_return1.range_image_pose_compressed: zlib of a MatrixFloat
+  // [H, W, 6], the vehicle pose at each pixel (rolling shutter); empty when
+  // absent.
+  std::string top_pose;
+};
+
 struct WaymoFrame {
   // Context.name: the segment.
   std::string context_name;
@@ -195,7 +209,9 @@ struct WaymoFrame {
   std::vector<WaymoCameraLabels> projected_lidar_labels;
   std::vector<WaymoCameraLabels> camera_labels;
   std::vector<WaymoLaserCalibration> laser_calibrations;
-  // `Laser` messages and whether any holds a range image (return 1 or 2).
+  // The `Laser` messages, their count and whether any holds a range image
+  // (return 1 or 2).
+  std::vector<WaymoLaser> lasers;
   int num_lasers = 0;
   bool has_range_images = false;
 

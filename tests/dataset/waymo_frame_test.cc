@@ -219,6 +219,9 @@ TEST(WaymoFrame, SyntheticFrameReadsBack) {
   EXPECT_EQ(f.laser_calibrations[0].beam_inclinations,
             (std::vector<double>{-0.3, 0.04}));
   EXPECT_EQ(f.num_lasers, 1);
+  ASSERT_EQ(f.lasers.size(), 1u);
+  EXPECT_EQ(f.lasers[0].name, WaymoLaserName::kTop);
+  EXPECT_TRUE(f.lasers[0].return1.empty());
   EXPECT_FALSE(f.has_range_images);
 }
 
@@ -335,6 +338,10 @@ TEST_F(WaymoRealFrame, ReadsCamerasLabelsAndReportsNoRangeImages) {
   EXPECT_EQ(frame_.laser_calibrations.size(), 5u);
   // Five empty Laser messages: reported, not fatal.
   EXPECT_EQ(frame_.num_lasers, 5);
+  for (const WaymoLaser& laser : frame_.lasers) {
+    EXPECT_EQ(laser.name, WaymoLaserName::kUnknown);
+    EXPECT_TRUE(laser.return1.empty() && laser.return2.empty());
+  }
   EXPECT_FALSE(frame_.has_range_images);
   // TOP has per-beam inclinations from -17.55 deg to 2.50 deg (waymo_v1.md).
   for (const WaymoLaserCalibration& c : frame_.laser_calibrations) {
