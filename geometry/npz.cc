@@ -294,6 +294,9 @@ void WriteNpz(const std::string& path,
     }
     zip_set_file_compression(z, static_cast<zip_uint64_t>(index),
                              compress ? ZIP_CM_DEFLATE : ZIP_CM_STORE, 0);
+    // A fixed member time (1980-01-02: after the zip format's 1980 epoch in
+    // every time zone): the same arrays give the same bytes.
+    zip_file_set_mtime(z, static_cast<zip_uint64_t>(index), 315619200, 0);
   }
   if (zip_close(z) != 0) {
     const std::string why = zip_strerror(z);

@@ -50,7 +50,8 @@ class NpzReader {
 
 // Writes `arrays` (name without ".npy" -> array) as an .npz, deflated
 // (numpy.savez_compressed) or stored (numpy.savez), atomically (temporary
-// file + rename). Throws InputError naming `path` on failure.
+// file + rename); the same arrays give the same bytes (members dated
+// 1980-01-02). Throws InputError naming `path` on failure.
 void WriteNpz(const std::string& path,
               const std::vector<std::pair<std::string, NpyArray>>& arrays,
               bool compress = true);
