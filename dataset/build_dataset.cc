@@ -704,8 +704,10 @@ void CheckClipIdsAreFolderNames(const std::vector<std::string>& clips,
   }
 }
 
-// The dataset's options for a build: its clips and, with --cameras, its rig
-// (the first camera listed is the reference; "all": CAM_FRONT).
+}  // namespace
+
+namespace internal {
+
 DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& opt) {
   DriveDatasetOptions dso;
   dso.root = opt.dataroot;
@@ -719,7 +721,7 @@ DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& opt) {
   return dso;
 }
 
-}  // namespace
+}  // namespace internal
 
 BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   opt.Check();
@@ -728,7 +730,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   // The dataset first (read only): a bad dataroot, table or camera list
   // leaves --out as it was.
   const std::unique_ptr<DriveDataset> dataset =
-      OpenDriveDataset(DatasetOptionsOf(opt));
+      OpenDriveDataset(internal::DatasetOptionsOf(opt));
   CreateOutputDirectory(opt.out + "/pairs");
   const OutputLocks locks(opt);
   if (!opt.quiet) std::cerr << "build-dataset: " << dataset->Describe() << "\n";

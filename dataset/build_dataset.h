@@ -196,6 +196,18 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions options);
 int MergeBuildOutputs(const std::string& out,
                       const ExportOptions& export_options = {});
 
+// `geodrive export`: adds `formats` to the pairs of the build-dataset output
+// `out` (its manifest's pairs) as --export would have written them: each
+// pair's clip is loaded again and its scene built and rendered with the
+// pair's own options (meta.json), the exporters' files are written into the
+// pair folder and its meta.json rewritten, then each format's index. Holds
+// OUT/.lock exclusively. Returns the number of pairs; throws InputError
+// naming the pair (a pair a format cannot serve, missing inputs).
+int ExportPairs(const std::string& out,
+                const std::vector<ExportFormat>& formats,
+                const ExportOptions& options,
+                bool quiet = false);
+
 // Writes OUT/report.html: one self-contained page (inline CSS and script;
 // links only to the pair files) with the counts, quality histograms, a
 // sortable per-pair table, the failures with their messages, each pair's GT

@@ -43,6 +43,10 @@ struct ClipContext {
   const std::vector<std::unique_ptr<Exporter>>* exporters = nullptr;
 };
 
+// The dataset's options for a build: its clips and, with --cameras, its rig
+// (the first camera listed is the reference; "all": CAM_FRONT).
+DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& options);
+
 // The clip's images: at source size (only for sources that colour from them;
 // empty otherwise) and at the output size (the ground truth).
 struct ClipFrames {

@@ -273,5 +273,43 @@ TEST(ExportStreetCrafter, ShardsAndMergeGiveTheSameLists) {
   }
 }
 
+// Every file under DIR (symlinks followed), by path relative to DIR.
+std::map<std::string, std::string> FilesUnder(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(
+           dir, fs::directory_options::follow_directory_symlink)) {
+    if (e.is_regular_file())
+      files[fs::relative(e.path(), dir).string()] =
+          test::ReadFile(e.path().string());
+  }
+  return files;
+}
+
+// `geodrive export` on pairs built without --export writes the same bytes
+// as build-dataset --export: the files of every pair and the lists.
+TEST(ExportStreetCrafter, ExportingBuiltPairsGivesTheSameFiles) {
+  const std::string out = test::MakeTempDir("export_sc_later");
+  BuildDatasetOptions o = Options(out);
+  o.exports.clear();
+  ASSERT_EQ(BuildDataset(o).built, 2);
+  ASSERT_FALSE(fs::exists(out + "/pairs/" + Clips()[0] + "/streetcrafter"));
+  EXPECT_EQ(ExportPairs(out, {ExportFormat::kStreetCrafter},
+                        Options(out).export_options, /*quiet=*/true),
+            2);
+  const auto got = FilesUnder(out + "/streetcrafter");
+  const auto want = FilesUnder(Export() + "/streetcrafter");
+  EXPECT_EQ(got.size(), want.size());
+  EXPECT_GT(got.size(), 2u * 25 * 4);
+  for (const auto& [rel, bytes] : want) {
+    const auto it = got.find(rel);
+    ASSERT_NE(it, got.end()) << rel;
+    EXPECT_TRUE(it->second == bytes) << rel;
+  }
+  // The pair records its new folder.
+  EXPECT_EQ(
+      ReadPairMeta(out + "/pairs/" + Clips()[0]).files.at("streetcrafter"),
+      "streetcrafter");
+}
+
 }  // namespace export_streetcrafter_test
 }  // namespace geodrive
