@@ -16,6 +16,7 @@
 #include "planning/clip_scene.h"
 #include "planning/plan_json.h"
 #include "planning/scores.h"
+#include "planning/visibility.h"
 
 namespace geodrive {
 namespace {
@@ -27,6 +28,8 @@ struct PlanArgs {
   int sample = 0;
   std::vector<double> shifts;
   bool no_logged = false;
+  bool visibility = false;
+  VisibilityOptions visibility_options;
   PlanScoreOptions score;
 };
 
@@ -53,20 +56,27 @@ int Run(const PlanArgs& a) {
   const std::vector<Candidate> candidates =
       GatherCandidates(scene, !a.no_logged, a.shifts, std::move(files),
                        a.sample, a.score.envelope);
-  const PlanResult result = ScoreCandidates(scene, candidates, a.score);
+  PlanResult result = ScoreCandidates(scene, candidates, a.score);
+  if (a.visibility) {
+    const ConditionScene condition =
+        VisibilityScene(clip, a.visibility_options);
+    ScoreVisibility(condition, clip, candidates, a.visibility_options, &result);
+  }
   WriteFileAtomic(a.out + "/plan.json",
                   PlanResultToJson(clip.id, candidates, result, a.score));
   WriteImageRgb(a.out + "/bev.png",
                 DrawPlanBev(scene, candidates, result, a.score));
   std::printf("plan %s: %s\n", clip.id.c_str(), result.BriefReport().c_str());
-  std::printf("%-4s %-28s %10s %9s %9s %9s %8s  %s\n", "rank", "candidate",
-              "cost", "min_d_m", "drivable", "clear_m@s", "ade_m", "rejected");
+  std::printf("%-4s %-28s %10s %9s %9s %9s %8s %8s  %s\n", "rank", "candidate",
+              "cost", "min_d_m", "drivable", "clear_m@s", "ade_m", "coverage",
+              "rejected");
   for (int i : result.ranking) {
     const CandidateScores& s = result.candidates[i];
-    std::printf("%-4d %-28s %10.3f %9.3f %9.3f %5.2f@%-4.1f %8.3f  %s\n",
+    std::printf("%-4d %-28s %10.3f %9.3f %9.3f %5.2f@%-4.1f %8.3f %8.3f  %s\n",
                 s.rank, s.name.c_str(), s.cost, s.min_box_distance,
                 s.drivable_fraction, s.static_clearance,
-                s.static_clearance_time, s.ade, s.reject_detail.c_str());
+                s.static_clearance_time, s.ade, s.mean_coverage,
+                s.reject_detail.c_str());
   }
   std::printf("wrote %s/{plan.json, bev.png}\n", a.out.c_str());
   return kExitOk;
@@ -108,6 +118,13 @@ CommandRunner SetupPlan(CLI::App& app) {
                  "distance (m), e.g. 1 2 3");
   app.add_flag("--no-logged", a->no_logged,
                "Do not score the logged trajectory itself");
+  app.add_flag("--visibility", a->visibility,
+               "Also render each candidate's front-camera condition coverage "
+               "(mean, min)");
+  app.add_option("--visibility-source", a->visibility_options.source,
+                 "Scene source of the condition cloud for --visibility")
+      ->check(CLI::IsMember({"lidar", "lidar-dense"}))
+      ->capture_default_str();
   app.add_option("--ego-length", a->score.ego_length, "Ego box length (m)")
       ->capture_default_str();
   app.add_option("--ego-width", a->score.ego_width, "Ego box width (m)")

@@ -41,6 +41,8 @@ nlohmann::json ScoresJson(const Candidate& c, const CandidateScores& s) {
                      {"max_curvature_per_m", Number(k.max_curvature)},
                      {"max_speed_mps", Number(k.max_speed)},
                      {"envelope_violation", s.envelope_violation}};
+  j["visibility"] = {{"mean_coverage", Number(s.mean_coverage)},
+                     {"min_coverage", Number(s.min_coverage)}};
   j["logged"] = {{"ade_m", Number(s.ade)},
                  {"fde_m", Number(s.fde)},
                  {"progress_m", Number(s.progress)}};

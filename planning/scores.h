@@ -166,6 +166,11 @@ struct CandidateScores {
   double fde = std::numeric_limits<double>::quiet_NaN();
   // Distance travelled along the candidate's path (m).
   double progress = 0;
+  // ---- Visibility (planning/visibility.h; NaN unless computed): mean and
+  // minimum over the waypoints of the front camera's condition coverage,
+  // in [0, 1]. Not part of the cost.
+  double mean_coverage = std::numeric_limits<double>::quiet_NaN();
+  double min_coverage = std::numeric_limits<double>::quiet_NaN();
   // ---- Decision.
   double cost = 0;
   RejectReason reject = RejectReason::kNone;
