@@ -311,5 +311,35 @@ TEST(ExportStreetCrafter, ExportingBuiltPairsGivesTheSameFiles) {
       "streetcrafter");
 }
 
+// The real scene-0916 (keyframes: three 25-frame clips, LiDAR geometry)
+// exports and reads back through the Python mirror of the loader.
+TEST(ExportStreetCrafter, RealScene0916ExportsAndReadsBack) {
+  const std::string root = test::RealDataPath("nuscenes_scene0916");
+  if (!fs::is_directory(root)) GTEST_SKIP() << "no " << root;
+  GEODRIVE_REQUIRE_PYTHON_MODULE("PIL");
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
+  const std::string out = test::MakeTempDir("export_sc_real");
+  BuildDatasetOptions o;
+  o.dataroot = root;
+  o.version = "v1.0-mini-extract";
+  o.frames = ClipFrameSource::kKeyframes;
+  o.geometry = "lidar";
+  o.out = out;
+  o.quiet = true;
+  o.exports = {ExportFormat::kStreetCrafter};
+  const BuildDatasetSummary s = BuildDataset(o);
+  ASSERT_EQ(s.built, 3) << test::ReadFile(out + "/failures.jsonl");
+  std::string log;
+  EXPECT_EQ(
+      test::RunCommand(std::string(test::kDebianPython) +
+                           " " GEODRIVE_SOURCE_DIR
+                           "/tests/dataset/streetcrafter_loader_check.py " +
+                           out + "/streetcrafter 3",
+                       &log),
+      0)
+      << log;
+  std::printf("%s", log.c_str());
+}
+
 }  // namespace export_streetcrafter_test
 }  // namespace geodrive
