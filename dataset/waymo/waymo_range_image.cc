@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <Eigen/Geometry>
 #include <climits>
 #include <cmath>
 
@@ -120,8 +121,29 @@ std::vector<double> WaymoColumnAzimuths(const WaymoLaserCalibration& laser,
   return columns;
 }
 
+Eigen::Matrix4d WaymoPixelPose(const WaymoRangeImage& top_pose,
+                               int row,
+                               int col) {
+  const double roll = top_pose.at(row, col, 0);
+  const double pitch = top_pose.at(row, col, 1);
+  const double yaw = top_pose.at(row, col, 2);
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.topLeftCorner<3, 3>() =
+      (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
+  m.topRightCorner<3, 1>() =
+      Eigen::Vector3d(top_pose.at(row, col, 3), top_pose.at(row, col, 4),
+                      top_pose.at(row, col, 5));
+  return m;
+}
+
 std::vector<Eigen::Vector3d> WaymoRangeImagePoints(
-    const WaymoRangeImage& image, const WaymoLaserCalibration& laser) {
+    const WaymoRangeImage& image,
+    const WaymoLaserCalibration& laser,
+    const WaymoRangeImage* top_pose,
+    const Eigen::Matrix4d& world_from_vehicle) {
   GEODRIVE_CHECK_INPUT(image.channels == 4, "laser ", ToString(laser.name),
                        ": a range image has 4 channels, this one ",
                        image.channels);
@@ -131,6 +153,16 @@ std::vector<Eigen::Vector3d> WaymoRangeImagePoints(
       static_cast<int>(inclinations.size()) == image.height, "laser ",
       ToString(laser.name), ": ", inclinations.size(),
       " beam inclinations for a range image of ", image.height, " rows");
+  if (top_pose != nullptr) {
+    GEODRIVE_CHECK_INPUT(
+        top_pose->channels == 6 && top_pose->height == image.height &&
+            top_pose->width == image.width,
+        "laser ", ToString(laser.name), ": a pixel-pose image of ",
+        top_pose->height, "x", top_pose->width, "x", top_pose->channels,
+        " for a range image of ", image.height, "x", image.width,
+        " (expected the same rows and columns, 6 channels)");
+  }
+  const Eigen::Matrix4d vehicle_from_world = world_from_vehicle.inverse();
   const std::vector<double> azimuths = WaymoColumnAzimuths(laser, image.width);
   const Eigen::Matrix3d R = laser.vehicle_from_laser.topLeftCorner<3, 3>();
   const Eigen::Vector3d t = laser.vehicle_from_laser.topRightCorner<3, 1>();
@@ -143,7 +175,14 @@ std::vector<Eigen::Vector3d> WaymoRangeImagePoints(
       if (!(range > 0)) continue;
       const Eigen::Vector3d p(std::cos(azimuths[c]) * ci * range,
                               std::sin(azimuths[c]) * ci * range, si * range);
-      points.push_back(R * p + t);
+      const Eigen::Vector3d vehicle = R * p + t;
+      if (top_pose == nullptr) {
+        points.push_back(vehicle);
+        continue;
+      }
+      const Eigen::Matrix4d frame_from_pixel =
+          vehicle_from_world * WaymoPixelPose(*top_pose, r, c);
+      points.push_back((frame_from_pixel * vehicle.homogeneous()).head<3>());
     }
   }
   return points;

@@ -14,7 +14,12 @@
 //    3W/4 right in the vehicle frame (range_image_utils.py:286-291);
 //  - a point: (cos az cos inc, sin az cos inc, sin inc) * range in the laser
 //    frame, then vehicle = E * p (range_image_utils.py:345-359).
-// TOP's per-pixel vehicle poses (rolling shutter) are not applied yet.
+//  - TOP's rolling shutter: range_image_top_pose [H, W, 6] = roll, pitch,
+//    yaw, x, y, z is the vehicle -> world pose at each pixel, rotation
+//    Rz(yaw) Ry(pitch) Rx(roll) (utils/transform_utils.py:77-126); a point
+//    goes world = pixel pose * p, then vehicle = inv(frame pose) * world
+//    (frame_utils.py:63-68, 131-162; range_image_utils.py:360-381). Return 2
+//    reuses return 1's pixel poses.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -57,10 +62,22 @@ std::vector<double> WaymoRowInclinations(const WaymoLaserCalibration& laser,
 std::vector<double> WaymoColumnAzimuths(const WaymoLaserCalibration& laser,
                                         int width);
 
-// The returns (range > 0) of `image` as points in the vehicle frame, row by
-// row. `image` must have 4 channels and, with beam_inclinations, as many
-// rows as the calibration has inclinations.
+// The vehicle -> world pose of TOP's pixel (row, col) from its pose image
+// (6 channels: roll, pitch, yaw, x, y, z).
+Eigen::Matrix4d WaymoPixelPose(const WaymoRangeImage& top_pose,
+                               int row,
+                               int col);
+
+// The returns (range > 0) of `image` as points in the vehicle frame (at the
+// frame pose), row by row. `image` must have 4 channels and, with
+// beam_inclinations, as many rows as the calibration has inclinations. With
+// `top_pose` (TOP's pose image, the same height and width) and
+// `world_from_vehicle` (the frame pose), each point is moved by its pixel's
+// pose: vehicle = inv(world_from_vehicle) * pixel_pose * p.
 std::vector<Eigen::Vector3d> WaymoRangeImagePoints(
-    const WaymoRangeImage& image, const WaymoLaserCalibration& laser);
+    const WaymoRangeImage& image,
+    const WaymoLaserCalibration& laser,
+    const WaymoRangeImage* top_pose = nullptr,
+    const Eigen::Matrix4d& world_from_vehicle = Eigen::Matrix4d::Identity());
 
 }  // namespace geodrive

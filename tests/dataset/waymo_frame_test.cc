@@ -8,6 +8,7 @@
 #include "dataset/waymo/waymo_frame.h"
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "dataset/waymo/tfrecord.h"
+#include "dataset/waymo/waymo_range_image.h"
 #include "geometry/image_io.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
@@ -39,10 +41,27 @@ void SetTransform(const Eigen::Matrix4d& m, wod::Transform* t) {
     for (int c = 0; c < 4; ++c) t->add_transform(m(r, c));
 }
 
+// zlib of a MatrixFloat [2, 4, 4] whose ranges are 5, 6, ... with one
+// empty pixel (range 0).
+std::string SmallRangeImage() {
+  wod::MatrixFloat m;
+  for (int d : {2, 4, 4}) m.mutable_shape()->add_dims(d);
+  for (int i = 0; i < 8; ++i) {
+    for (float v : {i == 5 ? 0.0f : 5.0f + i, 0.5f, 0.1f, -1.0f}) m.add_data(v);
+  }
+  const std::string bytes = m.SerializeAsString();
+  uLongf size = compressBound(bytes.size());
+  std::string out(size, '\0');
+  compress2(reinterpret_cast<Bytef*>(out.data()), &size,
+            reinterpret_cast<const Bytef*>(bytes.data()), bytes.size(), 6);
+  out.resize(size);
+  return out;
+}
+
 // A small frame of one FRONT camera (64x48 JPEG) looking along the vehicle's
 // +x from 1.5 m up, one vehicle box 10 m ahead and its projected label, one
-// empty TOP laser with its calibration. The fuzz seeds
-// fuzz/corpus/waymo_frame/synthetic_frame.pb and
+// TOP laser with a 2x4 first-return range image and its calibration. The fuzz
+// seeds fuzz/corpus/waymo_frame/synthetic_frame.pb and
 // fuzz/corpus/tfrecord/synthetic_frame.tfrecord are this frame, written by
 // WaymoFrame.SyntheticFrameReadsBack with GEODRIVE_WRITE_FUZZ_SEEDS=1.
 wod::Frame SyntheticFrame() {
@@ -73,7 +92,9 @@ wod::Frame SyntheticFrame() {
   laser_cal->add_beam_inclinations(-0.3);
   laser_cal->add_beam_inclinations(0.04);
   SetTransform(Eigen::Matrix4d::Identity(), laser_cal->mutable_extrinsic());
-  frame.add_lasers()->set_name(wod::LaserName::TOP);
+  wod::Laser* laser = frame.add_lasers();
+  laser->set_name(wod::LaserName::TOP);
+  laser->mutable_ri_return1()->set_range_image_compressed(SmallRangeImage());
 
   cv::Mat rgb(48, 64, CV_8UC3, cv::Scalar(90, 120, 200));
   const std::vector<uint8_t> jpeg = EncodeJpegRgb(rgb, 80);
@@ -221,8 +242,16 @@ TEST(WaymoFrame, SyntheticFrameReadsBack) {
   EXPECT_EQ(f.num_lasers, 1);
   ASSERT_EQ(f.lasers.size(), 1u);
   EXPECT_EQ(f.lasers[0].name, WaymoLaserName::kTop);
-  EXPECT_TRUE(f.lasers[0].return1.empty());
-  EXPECT_FALSE(f.has_range_images);
+  EXPECT_TRUE(f.lasers[0].return2.empty());
+  EXPECT_TRUE(f.has_range_images);
+  const WaymoRangeImage ri =
+      DecodeWaymoRangeImage(f.lasers[0].return1, 4, path, 0, "laser TOP");
+  EXPECT_EQ(ri.height, 2);
+  EXPECT_EQ(ri.width, 4);
+  const std::vector<Eigen::Vector3d> points =
+      WaymoRangeImagePoints(ri, f.laser_calibrations[0]);
+  ASSERT_EQ(points.size(), 7u);              // one pixel without a return
+  EXPECT_NEAR(points[0].norm(), 5.0, 1e-5);  // the laser at the origin
 }
 
 TEST(WaymoFrame, FrameWithoutCameraIsAnInputError) {

@@ -168,5 +168,67 @@ TEST(WaymoRangeImage, BadRangeImagesNameFileRecordAndLaser) {
   }
 }
 
+TEST(WaymoRangeImage, TopPixelPosesMovePointsByTheirPose) {
+  const int H = 3, W = 4;
+  const WaymoLaserCalibration laser = Laser(0.3);
+  std::vector<float> values(H * W * 4, 0.0f);
+  for (int i = 0; i < H * W; ++i) values[i * 4] = 20.0f + i;
+  const WaymoRangeImage image = DecodeWaymoRangeImage(
+      CompressedMatrix({H, W, 4}, values), 4, "f", 0, "laser TOP return 1");
+  const std::vector<Eigen::Vector3d> still =
+      WaymoRangeImagePoints(image, laser);
+
+  // Rz(yaw) Ry(pitch) Rx(roll), written out element by element.
+  const double roll = 0.2, pitch = -0.1, yaw = 0.7;
+  const double cr = std::cos(roll), sr = std::sin(roll);
+  const double cp = std::cos(pitch), sp = std::sin(pitch);
+  const double cy = std::cos(yaw), sy = std::sin(yaw);
+  Eigen::Matrix4d frame = Eigen::Matrix4d::Identity();
+  frame.topLeftCorner<3, 3>() << cy * cp, cy * sp * sr - sy * cr,
+      cy * sp * cr + sy * sr,                                   //
+      sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,  //
+      -sp, cp * sr, cp * cr;
+  frame.topRightCorner<3, 1>() = Eigen::Vector3d(100, -50, 3);
+
+  // Every pixel at the frame pose: the points do not move.
+  auto pose_image = [&](const Eigen::Vector3d& shift) {
+    std::vector<float> pose(H * W * 6);
+    for (int i = 0; i < H * W; ++i) {
+      const float p[6] = {float(roll),
+                          float(pitch),
+                          float(yaw),
+                          float(100 + shift.x()),
+                          float(-50 + shift.y()),
+                          float(3 + shift.z())};
+      std::copy(p, p + 6, pose.begin() + 6 * i);
+    }
+    return DecodeWaymoRangeImage(CompressedMatrix({H, W, 6}, pose), 6, "f", 0,
+                                 "laser TOP pose");
+  };
+  const WaymoRangeImage same = pose_image(Eigen::Vector3d::Zero());
+  EXPECT_THAT(WaymoPixelPose(same, 1, 2), test::EigenNear(frame, 1e-6));
+  std::vector<Eigen::Vector3d> moved =
+      WaymoRangeImagePoints(image, laser, &same, frame);
+  ASSERT_EQ(moved.size(), still.size());
+  for (size_t i = 0; i < still.size(); ++i)
+    EXPECT_THAT(moved[i], test::EigenNear(still[i], 1e-4));
+
+  // Pixels captured 0.5 m further along the world's x: each point is
+  // R_frame^T (0.5, 0, 0) further in the vehicle frame.
+  const WaymoRangeImage shifted = pose_image(Eigen::Vector3d(0.5, 0, 0));
+  moved = WaymoRangeImagePoints(image, laser, &shifted, frame);
+  const Eigen::Vector3d offset =
+      frame.topLeftCorner<3, 3>().transpose() * Eigen::Vector3d(0.5, 0, 0);
+  for (size_t i = 0; i < still.size(); ++i)
+    EXPECT_THAT(moved[i],
+                test::EigenNear(Eigen::Vector3d(still[i] + offset), 1e-4));
+
+  // A pose image of another size is refused.
+  const WaymoRangeImage wrong = DecodeWaymoRangeImage(
+      CompressedMatrix({H, W + 1, 6}, std::vector<float>(H * (W + 1) * 6)), 6,
+      "f", 0, "laser TOP pose");
+  EXPECT_THROW(WaymoRangeImagePoints(image, laser, &wrong, frame), InputError);
+}
+
 }  // namespace waymo_range_image_test
 }  // namespace geodrive
