@@ -149,7 +149,15 @@ void ExportPair(const std::string& out,
     fs::rename(e.path(), target);
   }
   fs::remove_all(tmp);
-  WriteFileAtomic(pair_dir + "/meta.json", PairMetaToJson(meta));
+  // The exporters' entries into the pair's own meta.json text (a round trip
+  // through PairMeta would move the poses by an ulp).
+  const std::string meta_path = pair_dir + "/meta.json";
+  json j = json::parse(ReadFileText(meta_path));
+  const json updated = json::parse(PairMetaToJson(meta));
+  j["files"] = updated.at("files");
+  if (updated.contains("upstream_scene_idx"))
+    j["upstream_scene_idx"] = updated["upstream_scene_idx"];
+  WriteFileAtomic(meta_path, j.dump(2) + "\n");
 }
 
 }  // namespace

@@ -293,6 +293,8 @@ TEST(ExportStreetCrafter, ExportingBuiltPairsGivesTheSameFiles) {
   o.exports.clear();
   ASSERT_EQ(BuildDataset(o).built, 2);
   ASSERT_FALSE(fs::exists(out + "/pairs/" + Clips()[0] + "/streetcrafter"));
+  const std::string meta_path = out + "/pairs/" + Clips()[0] + "/meta.json";
+  nlohmann::json before = ReadJson(meta_path);
   EXPECT_EQ(ExportPairs(out, {ExportFormat::kStreetCrafter},
                         Options(out).export_options, /*quiet=*/true),
             2);
@@ -305,6 +307,12 @@ TEST(ExportStreetCrafter, ExportingBuiltPairsGivesTheSameFiles) {
     ASSERT_NE(it, got.end()) << rel;
     EXPECT_TRUE(it->second == bytes) << rel;
   }
+  // The pair's meta.json is as it was (poses to the bit) but for its files.
+  nlohmann::json after = ReadJson(meta_path);
+  EXPECT_EQ(after["files"]["streetcrafter"], "streetcrafter");
+  before.erase("files");
+  after.erase("files");
+  EXPECT_EQ(before, after);
   // The pair records its new folder.
   EXPECT_EQ(
       ReadPairMeta(out + "/pairs/" + Clips()[0]).files.at("streetcrafter"),
