@@ -2,6 +2,9 @@
 // geometry (boxes over time, static LiDAR cloud, logged trajectory) and
 // writes plan.json and a bird's-eye view.
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -17,6 +20,7 @@
 #include "planning/plan_json.h"
 #include "planning/scores.h"
 #include "planning/visibility.h"
+#include "render/video/video.h"
 
 namespace geodrive {
 namespace {
@@ -29,9 +33,45 @@ struct PlanArgs {
   std::vector<double> shifts;
   bool no_logged = false;
   bool visibility = false;
+  int videos = 0;
   VisibilityOptions visibility_options;
   PlanScoreOptions score;
 };
+
+// A candidate name as a file name: letters, digits and "+-._" kept, any
+// other byte '_'.
+std::string FileSafe(const std::string& name) {
+  std::string out;
+  for (char c : name) {
+    const bool ok = std::isalnum(static_cast<unsigned char>(c)) || c == '+' ||
+                    c == '-' || c == '.' || c == '_';
+    out += ok ? c : '_';
+  }
+  return out.empty() || out[0] == '.' ? "_" + out : out;
+}
+
+// The condition videos of the `videos` best-ranked candidates:
+// OUT/videos/<rank>_<name>.mp4 (paper preset, the clip's frame rate).
+void WriteConditionVideos(const PlanArgs& a,
+                          const DriveClip& clip,
+                          const ConditionScene& condition,
+                          const std::vector<Candidate>& candidates,
+                          const PlanResult& result) {
+  if (a.videos <= 0) return;
+  CreateOutputDirectory(a.out + "/videos");
+  VideoWriteOptions video;
+  const double dt = clip.FrameIntervalSeconds();
+  video.fps = dt > 0 ? std::max(1.0, std::round(1.0 / dt)) : 10.0;
+  const size_t n = std::min<size_t>(a.videos, result.ranking.size());
+  for (size_t r = 0; r < n; ++r) {
+    const int i = result.ranking[r];
+    char prefix[32];
+    std::snprintf(prefix, sizeof prefix, "%03zu_", r + 1);
+    WriteVideo(a.out + "/videos/" + prefix +
+                   FileSafe(result.candidates[i].name) + ".mp4",
+               CandidateConditionFrames(condition, clip, candidates[i]), video);
+  }
+}
 
 int Run(const PlanArgs& a) {
   CreateOutputDirectory(a.out);
@@ -57,10 +97,13 @@ int Run(const PlanArgs& a) {
       GatherCandidates(scene, !a.no_logged, a.shifts, std::move(files),
                        a.sample, a.score.envelope);
   PlanResult result = ScoreCandidates(scene, candidates, a.score);
-  if (a.visibility) {
+  if (a.visibility || a.videos > 0) {
     const ConditionScene condition =
         VisibilityScene(clip, a.visibility_options);
-    ScoreVisibility(condition, clip, candidates, a.visibility_options, &result);
+    if (a.visibility)
+      ScoreVisibility(condition, clip, candidates, a.visibility_options,
+                      &result);
+    WriteConditionVideos(a, clip, condition, candidates, result);
   }
   WriteFileAtomic(a.out + "/plan.json",
                   PlanResultToJson(clip.id, candidates, result, a.score));
@@ -78,7 +121,8 @@ int Run(const PlanArgs& a) {
                 s.static_clearance_time, s.ade, s.mean_coverage,
                 s.reject_detail.c_str());
   }
-  std::printf("wrote %s/{plan.json, bev.png}\n", a.out.c_str());
+  std::printf("wrote %s/{plan.json, bev.png%s}\n", a.out.c_str(),
+              a.videos > 0 ? ", videos/" : "");
   return kExitOk;
 }
 
@@ -121,8 +165,13 @@ CommandRunner SetupPlan(CLI::App& app) {
   app.add_flag("--visibility", a->visibility,
                "Also render each candidate's front-camera condition coverage "
                "(mean, min)");
-  app.add_option("--visibility-source", a->visibility_options.source,
-                 "Scene source of the condition cloud for --visibility")
+  app.add_option("--videos", a->videos,
+                 "Write the condition videos of the N best-ranked candidates "
+                 "(videos/<rank>_<name>.mp4, paper preset)")
+      ->check(CLI::Range(0, 100000));
+  app.add_option(
+         "--visibility-source", a->visibility_options.source,
+         "Scene source of the condition cloud for --visibility and --videos")
       ->check(CLI::IsMember({"lidar", "lidar-dense"}))
       ->capture_default_str();
   app.add_option("--ego-length", a->score.ego_length, "Ego box length (m)")

@@ -39,9 +39,6 @@ void ScoreVisibility(const ConditionScene& scene,
   GEODRIVE_CHECK_INPUT(scene.has_camera && !scene.cloud.positions.empty(),
                        "visibility: the condition scene (", scene.description,
                        ") has no camera or no points");
-  const Rigid3d& ego_from_cam = clip.frames.front().ego_from_cam;
-  const Rigid3d scene_from_ego0 =
-      scene.scene_from_cam0 * ego_from_cam.Inverse();
   const PinholeCamera camera =
       scene.CameraAt(options.width, options.height, ResizeMode::kResize);
   RenderOptions render;
@@ -51,15 +48,42 @@ void ScoreVisibility(const ConditionScene& scene,
   render.num_threads = 1;
   RenderResult frames;
   for (size_t i = 0; i < candidates.size(); ++i) {
-    std::vector<Rigid3d> cam_from_scene;
-    for (const Rigid3d& pose : candidates[i].ego0_from_ego.world_from_cam)
-      cam_from_scene.push_back(
-          (scene_from_ego0 * pose * ego_from_cam).Inverse());
-    RenderFramesInto(scene.cloud, {camera}, cam_from_scene, render, &frames);
+    RenderFramesInto(scene.cloud, {camera},
+                     CandidateCameraPoses(scene, clip, candidates[i]), render,
+                     &frames);
     CandidateScores& s = result->candidates[i];
     s.mean_coverage = frames.summary.mean_coverage;
     s.min_coverage = frames.summary.min_coverage;
   }
+}
+
+std::vector<Rigid3d> CandidateCameraPoses(const ConditionScene& scene,
+                                          const DriveClip& clip,
+                                          const Candidate& candidate) {
+  GEODRIVE_CHECK_INPUT(!clip.frames.empty(), "clip ", clip.id, ": no frames");
+  const Rigid3d& ego_from_cam = clip.frames.front().ego_from_cam;
+  const Rigid3d scene_from_ego0 =
+      scene.scene_from_cam0 * ego_from_cam.Inverse();
+  std::vector<Rigid3d> cam_from_scene;
+  for (const Rigid3d& pose : candidate.ego0_from_ego.world_from_cam)
+    cam_from_scene.push_back((scene_from_ego0 * pose * ego_from_cam).Inverse());
+  return cam_from_scene;
+}
+
+std::vector<cv::Mat> CandidateConditionFrames(const ConditionScene& scene,
+                                              const DriveClip& clip,
+                                              const Candidate& candidate,
+                                              RenderPreset preset) {
+  GEODRIVE_CHECK_INPUT(scene.has_camera && !scene.cloud.positions.empty(),
+                       "condition frames: the scene (", scene.description,
+                       ") has no camera or no points");
+  const RenderOptions render = PresetRenderOptions(preset);
+  const PinholeCamera camera =
+      scene.CameraAt(render.width, render.height, ResizeMode::kResize);
+  const RenderResult result =
+      RenderFrames(scene.cloud, {camera},
+                   CandidateCameraPoses(scene, clip, candidate), render);
+  return FinalFrames(result, preset);
 }
 
 }  // namespace geodrive

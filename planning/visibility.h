@@ -10,6 +10,7 @@
 #include "dataset/scene_source.h"
 #include "planning/candidates.h"
 #include "planning/scores.h"
+#include "render/presets.h"
 
 namespace geodrive {
 
@@ -42,5 +43,20 @@ void ScoreVisibility(const ConditionScene& scene,
                      const std::vector<Candidate>& candidates,
                      const VisibilityOptions& options,
                      PlanResult* result);
+
+// The front camera's cam_from_scene at each waypoint of `candidate` (the
+// poses ScoreVisibility renders).
+std::vector<Rigid3d> CandidateCameraPoses(const ConditionScene& scene,
+                                          const DriveClip& clip,
+                                          const Candidate& candidate);
+
+// The candidate's condition frames: the front camera along its waypoints
+// rendered from the condition scene with `preset` (paper: 720 x 480,
+// z-buffer, one pixel per point), RGB CV_8UC3, one per waypoint.
+std::vector<cv::Mat> CandidateConditionFrames(
+    const ConditionScene& scene,
+    const DriveClip& clip,
+    const Candidate& candidate,
+    RenderPreset preset = RenderPreset::kPaper);
 
 }  // namespace geodrive

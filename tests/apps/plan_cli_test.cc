@@ -75,6 +75,33 @@ TEST(PlanCli, ScoresEveryKindOfCandidateIntoPlanJsonAndBev) {
   EXPECT_EQ(png, geodrive::test::ReadFile(dir + "/b/bev.png"));
 }
 
+TEST(PlanCli, VisibilityAndConditionVideosOfTheBest) {
+  const std::string dir = geodrive::test::MakeTempDir("plan_cli_videos");
+  std::string log;
+  ASSERT_EQ(RunCommand(GeodriveBinary() + PlanArgs(dir + "/o") +
+                           " --shifts 1 --visibility --videos 2",
+                       &log),
+            0)
+      << log;
+  const nlohmann::json plan =
+      nlohmann::json::parse(geodrive::test::ReadFile(dir + "/o/plan.json"));
+  for (const nlohmann::json& c : plan["candidates"]) {
+    const double mean = c["visibility"]["mean_coverage"].get<double>();
+    EXPECT_GT(mean, 0.0);
+    EXPECT_LE(mean, 1.0);
+    EXPECT_LE(c["visibility"]["min_coverage"].get<double>(), mean);
+  }
+  const std::string best = plan["ranking"][0].get<std::string>();
+  const std::string second = plan["ranking"][1].get<std::string>();
+  EXPECT_GT(
+      geodrive::test::ReadFile(dir + "/o/videos/001_" + best + ".mp4").size(),
+      1000u);
+  EXPECT_GT(
+      geodrive::test::ReadFile(dir + "/o/videos/002_" + second + ".mp4").size(),
+      1000u);
+  EXPECT_EQ(geodrive::test::ReadFile(dir + "/o/videos/003_x.mp4"), "");
+}
+
 TEST(PlanCli, BadCandidatesAreOneClearError) {
   const std::string dir = geodrive::test::MakeTempDir("plan_cli_bad");
   const std::string jump = dir + "/jump.jsonl";
