@@ -10,6 +10,7 @@
 #include "geometry/trajectory_json.h"
 #include "geometry/util/files.h"
 #include "geometry/util/input_file.h"
+#include "geometry/util/json_depth.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -160,7 +161,7 @@ std::vector<Candidate> ReadCandidatesJsonl(const std::string& path,
     const std::string where = path + ":" + std::to_string(number);
     nlohmann::json j;
     try {
-      j = nlohmann::json::parse(line);
+      j = internal::ParseJson(line, where);
     } catch (const nlohmann::json::exception& e) {
       ThrowInputError(where, "malformed JSON (", e.what(), ")");
     }

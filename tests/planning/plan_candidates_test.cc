@@ -148,6 +148,10 @@ TEST(PlanCandidates, BadCandidatesGiveOneClearError) {
       Write("one.jsonl", "{\"t\": 0, \"x\": 0, \"y\": 0}\n");
   EXPECT_EQ(ErrorOf([&] { geodrive::ReadCandidates(one); }),
             one + ": 1 waypoint(s), at least 2 needed");
+  // Hostile: nesting 100,000 deep is one error, not a stack overflow.
+  const std::string deep = Write("deep.jsonl", std::string(100000, '[') + "\n");
+  EXPECT_THAT(ErrorOf([&] { geodrive::ReadCandidates(deep); }),
+              testing::HasSubstr(deep + ":1: JSON nested more than 64"));
   // In memory: a NaN pose names the candidate and the waypoint.
   Candidate c;
   c.source = "mine";
