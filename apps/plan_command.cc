@@ -6,6 +6,8 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <memory>
 
@@ -34,9 +36,45 @@ struct PlanArgs {
   bool no_logged = false;
   bool visibility = false;
   int videos = 0;
+  std::vector<std::string> weights;
   VisibilityOptions visibility_options;
   PlanScoreOptions score;
 };
+
+// --weight NAME=VALUE: the cost weights of PlanScoreOptions by the names
+// plan.json writes them under "weights".
+void ApplyWeights(const std::vector<std::string>& items, PlanScoreOptions* o) {
+  const std::pair<const char*, double*> fields[] = {
+      {"collision", &o->weight_collision},
+      {"clearance_per_m", &o->weight_clearance},
+      {"clearance_target_m", &o->clearance_target},
+      {"offroad", &o->weight_offroad},
+      {"static_clearance_per_m", &o->weight_static_clearance},
+      {"ade_per_m", &o->weight_ade},
+      {"accel_per_mps2", &o->weight_accel},
+      {"jerk_per_mps3", &o->weight_jerk},
+      {"progress_per_m", &o->weight_progress}};
+  for (const std::string& item : items) {
+    const size_t eq = item.find('=');
+    double* field = nullptr;
+    for (const auto& [name, ptr] : fields)
+      if (eq != std::string::npos && item.compare(0, eq, name) == 0 &&
+          std::strlen(name) == eq)
+        field = ptr;
+    if (field == nullptr)
+      ThrowInputError("--weight", "'", item,
+                      "' is not NAME=VALUE with NAME one of collision, "
+                      "clearance_per_m, clearance_target_m, offroad, "
+                      "static_clearance_per_m, ade_per_m, accel_per_mps2, "
+                      "jerk_per_mps3, progress_per_m");
+    const std::string value = item.substr(eq + 1);
+    char* end = nullptr;
+    const double v = std::strtod(value.c_str(), &end);
+    if (value.empty() || *end != '\0' || !std::isfinite(v))
+      ThrowInputError("--weight", "'", item, "': the value is not a number");
+    *field = v;
+  }
+}
 
 // A candidate name as a file name: letters, digits and "+-._" kept, any
 // other byte '_'.
@@ -73,7 +111,8 @@ void WriteConditionVideos(const PlanArgs& a,
   }
 }
 
-int Run(const PlanArgs& a) {
+int Run(PlanArgs a) {
+  ApplyWeights(a.weights, &a.score);
   CreateOutputDirectory(a.out);
   DriveDatasetOptions dso;
   dso.root = a.dataroot;
@@ -174,6 +213,9 @@ CommandRunner SetupPlan(CLI::App& app) {
          "Scene source of the condition cloud for --visibility and --videos")
       ->check(CLI::IsMember({"lidar", "lidar-dense"}))
       ->capture_default_str();
+  app.add_option("--weight", a->weights,
+                 "A cost weight NAME=VALUE, as plan.json names them "
+                 "(docs/PLANNING.md), e.g. ade_per_m=2; repeatable");
   app.add_option("--ego-length", a->score.ego_length, "Ego box length (m)")
       ->capture_default_str();
   app.add_option("--ego-width", a->score.ego_width, "Ego box width (m)")

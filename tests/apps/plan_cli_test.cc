@@ -121,6 +121,12 @@ TEST(PlanCli, BadCandidatesAreOneClearError) {
                        &log),
             2);
   EXPECT_NE(log.find("no candidates"), std::string::npos) << log;
+  EXPECT_EQ(
+      RunCommand(GeodriveBinary() + PlanArgs(dir + "/o") + " --weight ade=1",
+                 &log),
+      2);
+  EXPECT_NE(log.find("--weight: 'ade=1' is not NAME=VALUE"), std::string::npos)
+      << log;
 }
 
 }  // namespace plan_cli_test
