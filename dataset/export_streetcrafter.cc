@@ -40,7 +40,6 @@
 #include "dataset/internal/exporters.h"
 #include "dataset/internal/pair_png.h"
 #include "dataset/pairs.h"
-#include "geometry/image_io.h"
 #include "geometry/npz.h"
 #include "geometry/util/files.h"
 #include "geometry/util/hash.h"
@@ -146,7 +145,7 @@ class StreetCrafterExporter : public Exporter {
       WritePairPng(dir + "/images/" + FrameName(i, ".png"), image);
       const std::string render = dir + "/lidar/color_render/";
       WritePairPng(render + FrameName(i, ".png"), guidance);
-      WriteImageRgb(render + FrameName(i, "_mask.png"), (*clip.drawn)[i]);
+      WritePairPng(render + FrameName(i, "_mask.png"), (*clip.drawn)[i]);
       if (clip.metric) {
         WriteDepthNpz(dir + "/lidar/depth/" + FrameName(i, ".npz"),
                       (*clip.depth)[i]);

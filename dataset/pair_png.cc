@@ -21,8 +21,9 @@ struct SpngFree {
 }  // namespace
 
 void WritePairPng(const std::string& path, const cv::Mat& rgb) {
-  GEODRIVE_CHECK_INPUT(!rgb.empty() && rgb.type() == CV_8UC3, path,
-                       ": expected a non-empty RGB image (CV_8UC3)");
+  GEODRIVE_CHECK_INPUT(
+      !rgb.empty() && (rgb.type() == CV_8UC3 || rgb.type() == CV_8UC1), path,
+      ": expected a non-empty RGB (CV_8UC3) or gray (CV_8UC1) image");
   const cv::Mat data = rgb.isContinuous() ? rgb : rgb.clone();
   std::unique_ptr<spng_ctx, SpngFree> ctx(spng_ctx_new(SPNG_CTX_ENCODER));
   GEODRIVE_CHECK_INPUT(ctx != nullptr, path,
@@ -41,7 +42,8 @@ void WritePairPng(const std::string& path, const cv::Mat& rgb) {
   ihdr.width = static_cast<uint32_t>(data.cols);
   ihdr.height = static_cast<uint32_t>(data.rows);
   ihdr.bit_depth = 8;
-  ihdr.color_type = SPNG_COLOR_TYPE_TRUECOLOR;
+  ihdr.color_type = data.channels() == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
+                                         : SPNG_COLOR_TYPE_GRAYSCALE;
   check(spng_set_ihdr(ctx.get(), &ihdr));
   check(spng_encode_image(ctx.get(), data.data, data.total() * data.elemSize(),
                           SPNG_FMT_PNG, SPNG_ENCODE_FINALIZE));

@@ -15,8 +15,9 @@
 namespace geodrive {
 namespace internal {
 
-// Writes an RGB CV_8UC3 image as an 8-bit truecolour PNG, atomically
-// (WriteFileAtomic). Throws InputError naming `path` on failure.
+// Writes an RGB CV_8UC3 image as an 8-bit truecolour PNG (a CV_8UC1 image
+// as 8-bit gray), atomically (WriteFileAtomic). Throws InputError naming
+// `path` on failure.
 void WritePairPng(const std::string& path, const cv::Mat& rgb);
 
 }  // namespace internal

@@ -480,6 +480,13 @@ TEST(PairPng, LosslessAndDeterministic) {
   internal::WritePairPng(dir + "/c.png", view);
   EXPECT_EQ(cv::norm(ReadImageRgb(dir + "/c.png"), view, cv::NORM_INF), 0.0);
   EXPECT_THROW(internal::WritePairPng(dir + "/d.png", cv::Mat()), InputError);
+  // Gray: 8-bit gray, the same pixels.
+  cv::Mat gray(33, 45, CV_8UC1);
+  cv::randu(gray, cv::Scalar::all(0), cv::Scalar::all(256));
+  internal::WritePairPng(dir + "/g.png", gray);
+  const cv::Mat gray_back = ReadImageUnchanged(dir + "/g.png");
+  ASSERT_EQ(gray_back.type(), CV_8UC1);
+  EXPECT_EQ(cv::norm(gray_back, gray, cv::NORM_INF), 0.0);
   fs::remove_all(dir);
 }
 
