@@ -221,6 +221,31 @@ struct PairRow {
   std::string gt, cond, preview, first_frame;
 };
 
+// A surround-view pair's cameras (frame-0 coverage) and seam check (the
+// fraction of overlap pixels whose depths agree within 1 %), one paragraph;
+// "" for a single-camera pair.
+std::string RigSummary(const PairMeta& m) {
+  if (m.views.size() < 2) return "";
+  std::ostringstream os;
+  os << "<p class='rig muted'>cameras, frame-0 coverage: ";
+  for (size_t k = 0; k < m.views.size(); ++k) {
+    const PairView& v = m.views[k];
+    os << (k ? ", " : "") << Html(v.channel) << " "
+       << (v.coverage.empty() ? std::string("&ndash;")
+                              : Fixed(v.coverage.front(), 3));
+  }
+  os << "<br>seams, depths within 1 % of the overlap: ";
+  if (m.seams.empty()) os << "no overlap with depth at frame 0";
+  for (size_t k = 0; k < m.seams.size(); ++k) {
+    const PairSeam& s = m.seams[k];
+    os << (k ? ", " : "") << Html(s.camera_a) << "&ndash;" << Html(s.camera_b)
+       << " " << Fixed(s.agreeing_fraction, 3) << " (" << s.overlap_pixels
+       << " px)";
+  }
+  os << "</p>";
+  return os.str();
+}
+
 // The URL of a pair's file role when meta.json lists it and it exists.
 std::string PairFileUrl(const std::string& out,
                         const ManifestEntry& e,
@@ -645,7 +670,9 @@ class ReportWriter {
          << " frames &middot; coverage " << Fixed(r.entry.mean_coverage, 3);
       if (r.psnr_mean)
         os << " &middot; PSNR " << Fixed(*r.psnr_mean, 1) << " dB";
-      os << "</span></h3><div class='vids'>";
+      os << "</span></h3>";
+      if (r.meta) os << RigSummary(*r.meta);
+      os << "<div class='vids'>";
       for (const auto& [role, label, url, poster] :
            {std::tuple<std::string, std::string, std::string, std::string>(
                 "gt", "ground truth", r.gt, r.first_frame),

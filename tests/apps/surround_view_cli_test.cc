@@ -62,6 +62,12 @@ TEST(SurroundViewCli, SixCameraPairIsWholeResumesAndRepeats) {
   EXPECT_NE(manifest.find("\"cameras\":[\"CAM_FRONT\",\"CAM_FRONT_LEFT\""),
             std::string::npos)
       << manifest;
+  // The report shows each camera's frame-0 coverage and the seam check.
+  const std::string report = test::ReadFile(a + "/report.html");
+  EXPECT_NE(report.find("cameras, frame-0 coverage: CAM_FRONT 0."),
+            std::string::npos);
+  EXPECT_NE(report.find("seams, depths within 1 % of the overlap: CAM_FRONT"),
+            std::string::npos);
   // A rerun verifies the pair (every camera's files listed with their
   // sizes) and builds nothing.
   ASSERT_EQ(RunCommand(GeodriveBinary() + RigArgs(a), &log), 0) << log;
