@@ -89,7 +89,9 @@ std::string FileSafe(const std::string& name) {
 }
 
 // The condition videos of the `videos` best-ranked candidates:
-// OUT/videos/<rank>_<name>.mp4 (paper preset, the clip's frame rate).
+// OUT/videos/<rank>_<name>.mp4 (paper preset, the clip's frame rate), and
+// the clip's frame 0 as OUT/videos/first_frame.png: with a video, the
+// inputs of `geodrive-diffusion generate --image ... --condition ...`.
 void WriteConditionVideos(const PlanArgs& a,
                           const DriveClip& clip,
                           const ConditionScene& condition,
@@ -97,6 +99,10 @@ void WriteConditionVideos(const PlanArgs& a,
                           const PlanResult& result) {
   if (a.videos <= 0) return;
   CreateOutputDirectory(a.out + "/videos");
+  const cv::Mat first = !condition.frame0_rgb.empty()
+                            ? condition.frame0_rgb
+                            : ReadImageRgb(clip.frames.front().image_path);
+  WriteImageRgb(a.out + "/videos/first_frame.png", first);
   VideoWriteOptions video;
   const double dt = clip.FrameIntervalSeconds();
   video.fps = dt > 0 ? std::max(1.0, std::round(1.0 / dt)) : 10.0;

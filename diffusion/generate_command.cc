@@ -72,6 +72,8 @@ struct GenerateArgs {
               prompt_embeds;
   std::string out, preset = "paper", scheduler = "dpm";
   std::string manifest, out_dir;  // batch mode over build-dataset pairs
+  // A ready condition video (e.g. `geodrive plan --videos`): no render.
+  std::string condition;
   int limit = 0;   // batch mode: at most this many pairs (0: all)
   int frames = 0;  // 0: min(model frames, trajectory poses)
   int steps = 50;
@@ -355,8 +357,46 @@ int RunGenerateManifest(const GenerateArgs& a) {
   return failed > 0 ? kExitCompletedWithFailures : kExitOk;
 }
 
+// From a first frame and a condition video made elsewhere (`geodrive plan
+// --videos`, a pair's cond.mp4): its first --frames frames (default: as many
+// as the model takes) condition the sample; nothing is rendered.
+int RunGenerateFromCondition(const GenerateArgs& a) {
+  GEODRIVE_CHECK_INPUT(!a.out.empty(), "--out is required");
+  GEODRIVE_CHECK_INPUT(!a.image.empty(), "--condition needs --image");
+  GEODRIVE_CHECK_INPUT(
+      a.geometry.empty() && a.scene.empty() && a.depth.empty() &&
+          a.trajectory.empty() && a.boxes.empty(),
+      "--condition takes a rendered condition video: --geometry, --scene, "
+      "--depth, --trajectory and --boxes do not apply");
+  CheckOutputIsNotInput(
+      a.out, {a.image, a.condition, a.weights, a.branch_weights, a.vae_weights,
+              a.prompt_embeds});
+  const Model m = LoadModel(a);
+  const cv::Mat image = ReadImageRgb(a.image);
+  const std::vector<cv::Mat> cond = ReadVideoFrames(a.condition);
+  const int avail = static_cast<int>(cond.size());
+  const int frames = a.frames > 0 ? a.frames : std::min(m.model_frames, avail);
+  GEODRIVE_CHECK_INPUT(frames >= 1 && frames <= m.model_frames, "--frames ",
+                       frames, " must be in [1, ", m.model_frames,
+                       "]: config '", a.config, "' generates ", m.model_frames,
+                       " frames at ", m.W, "x", m.H);
+  GEODRIVE_CHECK_INPUT(avail >= frames, a.condition, ": ", avail,
+                       " condition frames; --frames ", frames);
+  const fs::path out_path(a.out);
+  const fs::path dir =
+      out_path.has_parent_path() ? out_path.parent_path() : fs::path(".");
+  const std::string stem = out_path.stem().string();
+  const Weights vae = LoadVae(a, m);
+  std::cout << GenerateVideo(a, m, vae, image, cond, frames, a.out,
+                             (dir / (stem + "_preview.png")).string(),
+                             dir / (stem + "_latents"))
+            << "; condition video " << a.condition << std::endl;
+  return 0;
+}
+
 int RunGenerate(const GenerateArgs& a) {
   if (!a.manifest.empty()) return RunGenerateManifest(a);
+  if (!a.condition.empty()) return RunGenerateFromCondition(a);
   GEODRIVE_CHECK_INPUT(!a.out.empty(), "--out is required");
   // The video is not written over (or into the folder of) an input.
   const size_t colon = a.scene.find(':');
@@ -514,6 +554,9 @@ CommandRunner SetupGenerate(CLI::App& sub) {
   g->add_option("--manifest", a->manifest,
                 "batch mode: build-dataset manifest.jsonl; one video per pair "
                 "from its first GT frame and condition video");
+  g->add_option("--condition", a->condition,
+                "a rendered condition video (e.g. geodrive plan --videos) with "
+                "--image: generate from it instead of rendering one");
   g->add_option("--out-dir", a->out_dir,
                 "batch mode: folder of <clip_id>.mp4 (for `geodrive eval`); "
                 "previews and latents go to <out-dir>_work/");

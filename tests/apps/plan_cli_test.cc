@@ -100,6 +100,9 @@ TEST(PlanCli, VisibilityAndConditionVideosOfTheBest) {
       geodrive::test::ReadFile(dir + "/o/videos/002_" + second + ".mp4").size(),
       1000u);
   EXPECT_EQ(geodrive::test::ReadFile(dir + "/o/videos/003_x.mp4"), "");
+  // The clip's frame 0 beside them: generate's --image.
+  EXPECT_GT(geodrive::test::ReadFile(dir + "/o/videos/first_frame.png").size(),
+            1000u);
 }
 
 TEST(PlanCli, BadCandidatesAreOneClearError) {

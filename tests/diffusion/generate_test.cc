@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -185,6 +186,57 @@ TEST(DiffusionGenerate, ImageDepthIntrinsicsWithUserTrajectory) {
       << out;
   // Default --frames: min(9 model frames, 5 poses).
   EXPECT_EQ(ReadVideoFrames(dir + "/gen.mp4").size(), 5u) << out;
+}
+
+// A condition video made elsewhere (geodrive plan --videos): the sample is
+// conditioned on its frames, nothing is rendered; its latents are those of
+// the video's frames. Geometry options and too many --frames are refused.
+TEST(DiffusionGenerate, ReadyConditionVideoWithFirstFrame) {
+  const std::string dir = test::MakeTempDir("generate_condition");
+  cv::Mat rgb, depth;
+  SceneImageAndDepth(&rgb, &depth);
+  WriteImageRgb(dir + "/first.png", rgb);
+  std::vector<cv::Mat> cond;
+  for (int k = 0; k < 6; ++k) {
+    cv::Mat f = rgb.clone();
+    f.colRange(0, 4 + 4 * k).setTo(cv::Scalar(0, 0, 0));
+    cond.push_back(f);
+  }
+  WriteVideoFrames(dir + "/cond.mp4", cond, 10);
+  const std::string w = TinyWeights(dir);
+  const std::string base = test::DiffusionCommand() + " generate --image " +
+                           dir + "/first.png --condition " + dir +
+                           "/cond.mp4 --weights " + w +
+                           " --steps 1 --scheduler ddim --no-progress";
+  std::string out;
+  ASSERT_EQ(test::RunCommand(base + " --out " + dir + "/gen.mp4", &out), 0)
+      << out;
+  // Default --frames: min(9 model frames, 6 condition frames).
+  EXPECT_EQ(ReadVideoFrames(dir + "/gen.mp4").size(), 6u) << out;
+  EXPECT_NE(out.find("condition video " + dir + "/cond.mp4"), std::string::npos)
+      << out;
+  // Another condition video gives other condition latents.
+  std::reverse(cond.begin(), cond.end());
+  WriteVideoFrames(dir + "/cond2.mp4", cond, 10);
+  ASSERT_EQ(test::RunCommand(test::DiffusionCommand() + " generate --image " +
+                                 dir + "/first.png --condition " + dir +
+                                 "/cond2.mp4 --weights " + w +
+                                 " --steps 1 --scheduler ddim --no-progress "
+                                 "--out " +
+                                 dir + "/gen2.mp4",
+                             &out),
+            0)
+      << out;
+  EXPECT_NE(test::ReadFile(dir + "/gen_latents/cond.safetensors"),
+            test::ReadFile(dir + "/gen2_latents/cond.safetensors"));
+  for (const std::string bad :
+       {std::string(" --frames 7"), " --depth " + dir + "/x.npy",
+        " --trajectory " + dir + "/t.json"}) {
+    EXPECT_EQ(test::RunCommand(base + bad + " --out " + dir + "/bad.mp4", &out),
+              2)
+        << bad << ": " << out;
+    EXPECT_FALSE(fs::exists(dir + "/bad.mp4")) << bad;
+  }
 }
 
 // Batch mode over a build-dataset output (two hand-made 11-frame pairs): one
