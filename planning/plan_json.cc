@@ -10,6 +10,12 @@ nlohmann::json Number(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
+// A name or detail that does not apply (no collision, no rejection) is null,
+// as a missing number is.
+nlohmann::json Text(const std::string& v) {
+  return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(v);
+}
+
 nlohmann::json ScoresJson(const Candidate& c, const CandidateScores& s) {
   nlohmann::json j;
   j["name"] = s.name;
@@ -20,15 +26,15 @@ nlohmann::json ScoresJson(const Candidate& c, const CandidateScores& s) {
   j["cost"] = Number(s.cost);
   j["rejected"] = s.reject != RejectReason::kNone;
   j["reject_reason"] = ToString(s.reject);
-  j["reject_detail"] = s.reject_detail;
+  j["reject_detail"] = Text(s.reject_detail);
   j["collision"] = {
       {"collides", s.collides},
       {"first_time_s", Number(s.first_collision_time)},
-      {"first_with", s.first_collision_with},
-      {"first_with_category", s.first_collision_category},
+      {"first_with", Text(s.first_collision_with)},
+      {"first_with_category", Text(s.first_collision_category)},
       {"min_box_distance_m", Number(s.min_box_distance)},
       {"min_box_distance_time_s", Number(s.min_box_distance_time)},
-      {"closest_obstacle", s.closest_obstacle}};
+      {"closest_obstacle", Text(s.closest_obstacle)}};
   j["drivable"] = {
       {"fraction", Number(s.drivable_fraction)},
       {"static_clearance_m", Number(s.static_clearance)},
@@ -40,7 +46,7 @@ nlohmann::json ScoresJson(const Candidate& c, const CandidateScores& s) {
                      {"max_lat_jerk_mps3", Number(k.max_lat_jerk)},
                      {"max_curvature_per_m", Number(k.max_curvature)},
                      {"max_speed_mps", Number(k.max_speed)},
-                     {"envelope_violation", s.envelope_violation}};
+                     {"envelope_violation", Text(s.envelope_violation)}};
   j["visibility"] = {{"mean_coverage", Number(s.mean_coverage)},
                      {"min_coverage", Number(s.min_coverage)}};
   j["logged"] = {{"ade_m", Number(s.ade)},
