@@ -284,8 +284,7 @@ WaymoProjection ProjectWaymoCamera(const WaymoCameraCalibration& camera,
   return WaymoProjection::kValid;
 }
 
-Eigen::Matrix4d VehicleFromOpenCvCamera(
-    const Eigen::Matrix4d& vehicle_from_waymo_camera) {
+Eigen::Matrix4d WaymoCameraFromOpenCvCamera() {
   // Columns: the OpenCV axes in Waymo camera coordinates. OpenCV x (right)
   // is Waymo -y (y points left), OpenCV y (down) is Waymo -z (z points up),
   // OpenCV z (forward) is Waymo +x.
@@ -294,7 +293,19 @@ Eigen::Matrix4d VehicleFromOpenCvCamera(
   waymo_camera_from_opencv(2, 1) = -1;
   waymo_camera_from_opencv(0, 2) = 1;
   waymo_camera_from_opencv(3, 3) = 1;
-  return vehicle_from_waymo_camera * waymo_camera_from_opencv;
+  return waymo_camera_from_opencv;
+}
+
+Eigen::Matrix4d VehicleFromOpenCvCamera(
+    const Eigen::Matrix4d& vehicle_from_waymo_camera) {
+  return vehicle_from_waymo_camera * WaymoCameraFromOpenCvCamera();
+}
+
+Eigen::Matrix4d VehicleFromWaymoCamera(
+    const Eigen::Matrix4d& vehicle_from_opencv_camera) {
+  // The inverse of the permutation is its transpose (exact in doubles).
+  return vehicle_from_opencv_camera *
+         WaymoCameraFromOpenCvCamera().transpose();
 }
 
 std::vector<Eigen::Vector3d> WaymoBoxCorners(const WaymoBox3d& box) {

@@ -88,6 +88,13 @@ struct WaymoIntrinsics {
 // waymo_camera_from_opencv maps OpenCV x to Waymo -y, y to -z and z to +x.
 Eigen::Matrix4d VehicleFromOpenCvCamera(
     const Eigen::Matrix4d& vehicle_from_waymo_camera);
+// The inverse, for writers: vehicle_from_waymo_camera from the OpenCV-axes
+// extrinsic. Both directions use the one permutation
+// WaymoCameraFromOpenCvCamera().
+Eigen::Matrix4d VehicleFromWaymoCamera(
+    const Eigen::Matrix4d& vehicle_from_opencv_camera);
+// The axis permutation itself (OpenCV camera -> Waymo camera).
+Eigen::Matrix4d WaymoCameraFromOpenCvCamera();
 
 struct WaymoCameraCalibration {
   WaymoCameraName name = WaymoCameraName::kUnknown;
