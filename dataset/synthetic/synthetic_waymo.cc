@@ -233,13 +233,13 @@ WaymoLaser CastTop(const SyntheticWorld& world,
 
 // One camera's image (rendered at its trigger time with its own pose) and
 // its camera_labels.
-void RenderCamera(const SyntheticWorld& world,
-                  const SyntheticWaymoOptions& options,
-                  const SyntheticWaymoCamera& cam,
-                  int64_t frame_us,
-                  double t,
-                  const std::vector<WaymoBox3d>& boxes,
-                  WaymoFrame* frame) {
+void RenderWaymoCamera(const SyntheticWorld& world,
+                       const SyntheticWaymoOptions& options,
+                       const SyntheticWaymoCamera& cam,
+                       int64_t frame_us,
+                       double t,
+                       const std::vector<WaymoBox3d>& boxes,
+                       WaymoFrame* frame) {
   const double tc = t + cam.time_offset_s;
   const Rigid3d global_from_vehicle = world.GlobalFromEgo(tc);
   const RenderedView view = world.RenderCamera(
@@ -269,12 +269,12 @@ std::vector<std::pair<WaymoObjectType, int>> VehicleCount(int n) {
 }
 
 // One frame of scene `scene` as the serialized `Frame`.
-std::string MakeFrame(const SyntheticWorld& world,
-                      const SyntheticWaymoOptions& options,
-                      const std::vector<SyntheticWaymoCamera>& rig,
-                      int scene,
-                      int index,
-                      SyntheticWaymoSummary* summary) {
+std::string MakeWaymoFrame(const SyntheticWorld& world,
+                           const SyntheticWaymoOptions& options,
+                           const std::vector<SyntheticWaymoCamera>& rig,
+                           int scene,
+                           int index,
+                           SyntheticWaymoSummary* summary) {
   const double t = SyntheticWaymoFrameSeconds(index);
   const Rigid3d global_from_vehicle = world.GlobalFromEgo(t);
   WaymoFrame frame;
@@ -284,8 +284,8 @@ std::string MakeFrame(const SyntheticWorld& world,
   frame.laser_labels = LaserLabels(world, global_from_vehicle, t);
   for (const SyntheticWaymoCamera& cam : rig) {
     frame.camera_calibrations.push_back(CalibrationOf(cam));
-    RenderCamera(world, options, cam, frame.timestamp_micros, t,
-                 frame.laser_labels, &frame);
+    RenderWaymoCamera(world, options, cam, frame.timestamp_micros, t,
+                      frame.laser_labels, &frame);
     frame.projected_lidar_labels.push_back(
         ProjectedLabels(frame.camera_calibrations.back(), frame.laser_labels));
   }
@@ -308,11 +308,11 @@ std::string MakeFrame(const SyntheticWorld& world,
 }
 
 // Writes scene `scene`'s segment file, frame by frame.
-void WriteScene(const SyntheticWaymoOptions& options,
-                const std::vector<SyntheticWaymoCamera>& rig,
-                int scene,
-                const std::string& path,
-                SyntheticWaymoSummary* summary) {
+void WriteWaymoScene(const SyntheticWaymoOptions& options,
+                     const std::vector<SyntheticWaymoCamera>& rig,
+                     int scene,
+                     const std::string& path,
+                     SyntheticWaymoSummary* summary) {
   const SyntheticWorld world(SyntheticWaymoWorldOptions(options, scene));
   const std::string tmp = TemporaryPathFor(path);
   {
@@ -322,7 +322,7 @@ void WriteScene(const SyntheticWaymoOptions& options,
     std::string record;
     for (int i = 0; i < n; ++i) {
       record.clear();
-      AppendTfRecord(MakeFrame(world, options, rig, scene, i, summary),
+      AppendTfRecord(MakeWaymoFrame(world, options, rig, scene, i, summary),
                      &record);
       out.write(record.data(), static_cast<std::streamsize>(record.size()));
       summary->num_bytes += static_cast<int64_t>(record.size());
@@ -487,7 +487,7 @@ SyntheticWaymoSummary WriteSyntheticWaymo(const SyntheticWaymoOptions& options,
   for (int scene = 0; scene < options.num_scenes; ++scene) {
     const std::string path =
         out_dir + "/" + SyntheticWaymoFileName(options, scene);
-    WriteScene(options, rig, scene, path, &summary);
+    WriteWaymoScene(options, rig, scene, path, &summary);
     summary.files.push_back(path);
   }
   summary.seconds =
