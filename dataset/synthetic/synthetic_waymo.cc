@@ -107,13 +107,18 @@ WaymoBox2d Box2d(
 
 // projected_lidar_labels: the box of the 8 projected corners clipped to the
 // image ([-0.5, W - 0.5] x [-0.5, H - 0.5]); boxes with a corner behind the
-// camera or outside the image are left out.
+// camera or outside the image are left out. The corners (vehicle frame at the
+// frame pose `world_from_vehicle`) go through the world to the camera at its
+// image's pose, as Waymo projects its labels with each camera's own pose.
 WaymoCameraLabels ProjectedLabels(const WaymoCameraCalibration& camera,
+                                  const WaymoCameraImage& image,
+                                  const Eigen::Matrix4d& world_from_vehicle,
                                   const std::vector<WaymoBox3d>& boxes) {
   WaymoCameraLabels out;
   out.name = camera.name;
   const Eigen::Matrix4d camera_from_vehicle =
-      camera.vehicle_from_camera.inverse();
+      camera.vehicle_from_camera.inverse() *
+      image.world_from_vehicle.inverse() * world_from_vehicle;
   for (const WaymoBox3d& box : boxes) {
     Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
     bool behind = false;
@@ -287,7 +292,8 @@ std::string MakeWaymoFrame(const SyntheticWorld& world,
     RenderWaymoCamera(world, options, cam, frame.timestamp_micros, t,
                       frame.laser_labels, &frame);
     frame.projected_lidar_labels.push_back(
-        ProjectedLabels(frame.camera_calibrations.back(), frame.laser_labels));
+        ProjectedLabels(frame.camera_calibrations.back(), frame.images.back(),
+                        frame.world_from_vehicle, frame.laser_labels));
   }
   frame.laser_calibrations.push_back(SyntheticWaymoTopCalibration());
   frame.lasers.push_back(CastTop(world, options, global_from_vehicle, t,

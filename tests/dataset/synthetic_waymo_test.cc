@@ -200,6 +200,40 @@ TEST(SyntheticWaymo, CamerasMatchTheRigAndProjectAsTheWorldsCameras) {
   EXPECT_LE(pixel_err, 0.01);
 }
 
+// Each camera_labels box (the vehicle's visible pixels) lies inside its
+// projected_lidar_labels box (the projected 3D box at the image's pose) up to
+// the half pixel of the pixel edges and the vehicle's own motion between the
+// frame time and the camera's trigger time.
+TEST(SyntheticWaymo, CameraLabelsLieInsideTheProjectedBoxes) {
+  double worst = 0;
+  int pairs = 0;
+  for (const WaymoFrame& f : SmallSegment().frames) {
+    for (const WaymoCameraLabels& visible : f.camera_labels) {
+      const WaymoCameraLabels* projected = f.ProjectedLidarLabels(visible.name);
+      ASSERT_NE(projected, nullptr);
+      for (const WaymoBox2d& v : visible.boxes) {
+        const auto it =
+            std::find_if(projected->boxes.begin(), projected->boxes.end(),
+                         [&](const WaymoBox2d& p) { return p.id == v.id; });
+        if (it == projected->boxes.end()) continue;  // a corner behind
+        ++pairs;
+        worst = std::max(
+            {worst,
+             (it->center_x - 0.5 * it->size_x) - (v.center_x - 0.5 * v.size_x),
+             (v.center_x + 0.5 * v.size_x) - (it->center_x + 0.5 * it->size_x),
+             (it->center_y - 0.5 * it->size_y) - (v.center_y - 0.5 * v.size_y),
+             (v.center_y + 0.5 * v.size_y) -
+                 (it->center_y + 0.5 * it->size_y)});
+      }
+    }
+  }
+  std::cout << pairs
+            << " visible boxes, largest overhang beyond the projected box "
+            << worst << " px" << std::endl;
+  EXPECT_GT(pairs, 20);
+  EXPECT_LE(worst, 1.0);
+}
+
 TEST(SyntheticWaymo, RangeImagePointsLieOnTheWorldsSurfaces) {
   const SyntheticWaymoOptions o = SmallOptions();
   const SyntheticWorld world(SyntheticWaymoWorldOptions(o, 0));
