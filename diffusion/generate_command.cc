@@ -357,6 +357,23 @@ int RunGenerateManifest(const GenerateArgs& a) {
   return failed > 0 ? kExitCompletedWithFailures : kExitOk;
 }
 
+// GenerateVideo into --out, its preview and latents beside it
+// (<stem>_preview.png, <stem>_latents/); returns its summary.
+std::string GenerateToOut(const GenerateArgs& a,
+                          const Model& m,
+                          const cv::Mat& image,
+                          const std::vector<cv::Mat>& cond,
+                          int frames) {
+  const fs::path out_path(a.out);
+  const fs::path dir =
+      out_path.has_parent_path() ? out_path.parent_path() : fs::path(".");
+  const std::string stem = out_path.stem().string();
+  const Weights vae = LoadVae(a, m);
+  return GenerateVideo(a, m, vae, image, cond, frames, a.out,
+                       (dir / (stem + "_preview.png")).string(),
+                       dir / (stem + "_latents"));
+}
+
 // From a first frame and a condition video made elsewhere (`geodrive plan
 // --videos`, a pair's cond.mp4): its first --frames frames (default: as many
 // as the model takes) condition the sample; nothing is rendered.
@@ -382,15 +399,8 @@ int RunGenerateFromCondition(const GenerateArgs& a) {
                        " frames at ", m.W, "x", m.H);
   GEODRIVE_CHECK_INPUT(avail >= frames, a.condition, ": ", avail,
                        " condition frames; --frames ", frames);
-  const fs::path out_path(a.out);
-  const fs::path dir =
-      out_path.has_parent_path() ? out_path.parent_path() : fs::path(".");
-  const std::string stem = out_path.stem().string();
-  const Weights vae = LoadVae(a, m);
-  std::cout << GenerateVideo(a, m, vae, image, cond, frames, a.out,
-                             (dir / (stem + "_preview.png")).string(),
-                             dir / (stem + "_latents"))
-            << "; condition video " << a.condition << std::endl;
+  std::cout << GenerateToOut(a, m, image, cond, frames) << "; condition video "
+            << a.condition << std::endl;
   return 0;
 }
 
@@ -489,14 +499,7 @@ int RunGenerate(const GenerateArgs& a) {
   std::vector<cv::Mat> cond =
       FinalFrames(rendered, preset,
                   preset == RenderPreset::kGeodriveCompat ? image : cv::Mat());
-  const fs::path out_path(a.out);
-  const fs::path dir =
-      out_path.has_parent_path() ? out_path.parent_path() : fs::path(".");
-  const std::string stem = out_path.stem().string();
-  const Weights vae = LoadVae(a, m);
-  std::cout << GenerateVideo(a, m, vae, image, cond, frames, a.out,
-                             (dir / (stem + "_preview.png")).string(),
-                             dir / (stem + "_latents"))
+  std::cout << GenerateToOut(a, m, image, cond, frames)
             << "; condition render from " << cloud.size()
             << " points, mean coverage " << std::fixed << std::setprecision(3)
             << rendered.summary.mean_coverage << std::endl;
