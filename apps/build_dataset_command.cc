@@ -27,6 +27,7 @@ namespace {
 
 struct Args {
   BuildDatasetOptions options;
+  std::string dataset = "auto";  // --dataset
   std::string shard = "0/1";
   std::string size = "480x720";
   std::string clips;
@@ -148,7 +149,8 @@ int Run(Args& a) {
 // them.
 void AddSourceOptions(CLI::App& app, BuildDatasetOptions& o) {
   app.add_option("--dataroot", o.dataroot,
-                 "nuScenes root (holds <version>/, samples/, sweeps/)");
+                 "nuScenes root (holds <version>/, samples/, sweeps/), or a "
+                 "folder of Waymo *.tfrecord segments");
   app.add_option("--version", o.version, "Table folder, e.g. v1.0-mini")
       ->capture_default_str();
   app.add_option("--monst3r", o.monst3r_root,
@@ -267,7 +269,9 @@ void AddPairOptions(CLI::App& app, Args& a) {
                  "OUT/geodrive_upstream/sample_%06d/render_%d.png and "
                  "meta.jsonl), streetcrafter (StreetCrafter's video trainer: "
                  "OUT/streetcrafter/meta_info_{train,val}.json, 25-frame "
-                 "samples at 576x320); none")
+                 "samples at 576x320), gen3c (GEN3C's dynamic-video input: "
+                 "OUT/gen3c/<clip>/rgb.mp4, depth.npz, mask.npz, camera.npz "
+                 "at 1280x704; --clip-frames 121, 241, ...); none")
       ->capture_default_str();
   app.add_option("--val-fraction", o.export_options.val_fraction,
                  "Exports with train/val lists: fraction of the scenes "
@@ -324,6 +328,11 @@ CommandRunner Setup(CLI::App& app) {
                                               {"none", PairEditMode::kNone}}))
       ->default_str("3d");
   AddPairOptions(app, *a);
+  app.add_option("--dataset", a->dataset,
+                 "nuscenes, waymo, or auto (waymo when --dataroot holds "
+                 "*.tfrecord files)")
+      ->check(CLI::IsMember({"auto", "nuscenes", "waymo"}))
+      ->capture_default_str();
   app.add_option("--merge", a->merge,
                  "Merge the shard outputs in this folder (manifest, failures, "
                  "the exports' indexes split by --val-fraction and "
@@ -333,6 +342,8 @@ CommandRunner Setup(CLI::App& app) {
       GEODRIVE_CHECK_INPUT(
           !a->options.dataroot.empty() && !a->options.out.empty(),
           "build-dataset: --dataroot and --out are required (or --merge OUT)");
+      a->options.dataset =
+          ResolveDatasetFormat(a->dataset, a->options.dataroot);
     }
     return Run(*a);
   };

@@ -17,6 +17,7 @@
 #include "apps/cli/cli.h"
 #include "dataset/drive_dataset.h"
 #include "dataset/pairs.h"
+#include "geometry/image_io.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
@@ -28,6 +29,7 @@ using nlohmann::json;
 
 struct ClipsArgs {
   DriveDatasetOptions dataset;
+  std::string format = "auto";  // --dataset
   std::string frames = "all";
   std::string out;
   std::string clips;  // comma-separated ids; empty = all
@@ -89,10 +91,22 @@ void LinkImages(const DriveClip& clip, const std::string& dir, bool copy) {
   fs::create_directories(images);
   for (size_t i = 0; i < clip.frames.size(); ++i) {
     const std::string& src = clip.frames[i].image_path;
-    GEODRIVE_CHECK_INPUT(fs::is_regular_file(src), src,
-                         ": image listed in the dataset is missing on disk");
     char name[32];
     std::snprintf(name, sizeof(name), "%05zu.jpg", i);
+    if (!fs::exists(src) && src.find('#') != std::string::npos) {
+      // An image inside a container (a Waymo frame record): its JPEG as
+      // stored, or the undistorted image (a PNG from the reader) as a
+      // quality-95 JPEG.
+      const ImageFile image = ReadImageFile(src);
+      const std::string dst = (images / name).string();
+      if (ReadImageHeader(image).jpeg)
+        WriteFileAtomic(dst, image.bytes.data(), image.bytes.size());
+      else
+        WriteJpeg(dst, DecodeImageRgb(image), 95);
+      continue;
+    }
+    GEODRIVE_CHECK_INPUT(fs::is_regular_file(src), src,
+                         ": image listed in the dataset is missing on disk");
     const fs::path dst = images / name;
     std::error_code ec;
     fs::remove(dst, ec);
@@ -109,6 +123,7 @@ void LinkImages(const DriveClip& clip, const std::string& dir, bool copy) {
 
 int RunClips(ClipsArgs& a) {
   a.dataset.frames = ParseClipFrameSource(a.frames);
+  a.dataset.format = ResolveDatasetFormat(a.format, a.dataset.root);
   CreateOutputDirectory(a.out);  // an unusable --out fails first
   const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(a.dataset);
   std::cerr << "clips: " << dataset->Describe() << "\n";
@@ -167,8 +182,14 @@ CommandRunner SetupClips(CLI::App& app) {
       "--seq_name <clip_id>\n"
       "then `geodrive build-dataset --monst3r ROOT` finds ROOT/<clip_id>/.");
   app.add_option("--dataroot", a->dataset.root,
-                 "nuScenes root (holds <version>/, samples/, sweeps/)")
+                 "nuScenes root (holds <version>/, samples/, sweeps/), or a "
+                 "folder of Waymo *.tfrecord segments")
       ->required();
+  app.add_option("--dataset", a->format,
+                 "nuscenes, waymo, or auto (waymo when --dataroot holds "
+                 "*.tfrecord files)")
+      ->check(CLI::IsMember({"auto", "nuscenes", "waymo"}))
+      ->capture_default_str();
   app.add_option("--version", a->dataset.version, "Table folder")
       ->capture_default_str();
   app.add_option("--out", a->out, "Output folder")->required();

@@ -8,7 +8,7 @@
 #include <memory>
 
 #include "apps/cli/cli.h"
-#include "dataset/clips.h"
+#include "dataset/nuscenes_clips.h"
 #include "dataset/nuscenes.h"
 
 namespace geodrive {

@@ -24,7 +24,7 @@
 #include <optional>
 #include <random>
 
-#include "dataset/clips.h"
+#include "dataset/nuscenes_clips.h"
 #include "dataset/nuscenes.h"
 #include "dataset/nuscenes_projection.h"
 #include "dataset/synthetic/synthetic_dataset.h"

@@ -153,6 +153,8 @@ void BuildDatasetOptions::Check() const {
 std::string BuildDatasetOptions::ContentOptionsJson() const {
   json j;  // nlohmann::json objects keep keys sorted: stable text
   j["version"] = version;
+  // Only non-default formats: nuScenes outputs keep their identity.
+  if (dataset != DatasetFormat::kNuscenes) j["dataset"] = ToString(dataset);
   j["geometry"] = SceneSourceName();
   j["preset"] = ToString(preset);
   j["edit_mode"] = ToString(edit_mode);
@@ -710,6 +712,7 @@ namespace internal {
 
 DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& opt) {
   DriveDatasetOptions dso;
+  dso.format = opt.dataset;
   dso.root = opt.dataroot;
   dso.version = opt.version;
   dso.clip_frames = opt.clip_frames;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "dataset/drive_clip.h"
+#include "dataset/drive_dataset.h"
 #include "dataset/exporter.h"
 #include "dataset/pairs.h"
 #include "dataset/scene_source.h"
@@ -35,7 +36,11 @@ std::string ToString(PairEditMode mode);  // "3d", "2d", "none"
 PairEditMode ParsePairEditMode(const std::string& text);
 
 struct BuildDatasetOptions {
-  std::string dataroot;  // nuScenes root (holds <version>/, samples/, sweeps/)
+  // Dataset format of `dataroot`.
+  DatasetFormat dataset = DatasetFormat::kNuscenes;
+  // nuScenes root (holds <version>/, samples/, sweeps/), or a folder of
+  // Waymo *.tfrecord segments.
+  std::string dataroot;
   std::string version = "v1.0-mini";
   // ROOT/<clip_id>/ input folders of path-based scene sources (MonST3R
   // folders for geometry monst3r, depth folders for depth-folder, ...).

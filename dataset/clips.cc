@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <set>
 #include <sstream>
 
 #include "dataset/clip_id.h"
@@ -34,39 +33,29 @@ std::string ClipSelectionSummary::BriefReport() const {
   return os.str();
 }
 
-std::vector<Clip> SelectSceneClips(const Nuscenes& nusc,
-                                   int32_t scene,
-                                   const ClipOptions& options,
-                                   ClipSelectionSummary* summary) {
+std::vector<ChainClip> SelectChainClips(const std::string& scene_name,
+                                        const std::vector<int64_t>& ts,
+                                        const std::vector<bool>& keyframes,
+                                        const ClipOptions& options,
+                                        ClipSelectionSummary* summary) {
   options.Check();
-  std::vector<Clip> clips;
-  const int32_t sensor = nusc.FindSensor(options.channel);
-  GEODRIVE_CHECK_INPUT(sensor != kNoIndex, nusc.VersionDir(),
-                       "/sensor.json: no channel '", options.channel, "'");
-  const auto& sd = nusc.sample_data();
-  std::vector<int32_t> keyframes;
-  if (options.keyframes_only) {
-    for (int32_t row : nusc.Chain(scene, sensor))
-      if (sd[row].is_key_frame) keyframes.push_back(row);
-  }
-  const std::vector<int32_t>& chain =
-      options.keyframes_only ? keyframes : nusc.Chain(scene, sensor);
+  GEODRIVE_CHECK_INPUT(keyframes.size() == ts.size(), "scene ", scene_name,
+                       ": ", ts.size(), " timestamps but ", keyframes.size(),
+                       " keyframe flags");
+  std::vector<ChainClip> clips;
   if (summary) ++summary->scenes;
-  const int n = static_cast<int>(chain.size());
+  const int n = static_cast<int>(ts.size());
   if (n < options.num_frames) {
     if (summary) ++summary->scenes_too_short;
     return clips;
   }
-  const std::string& scene_name = nusc.scenes()[scene].name;
-  std::vector<int64_t> ts(n);
-  for (int i = 0; i < n; ++i) ts[i] = sd[chain[i]].timestamp;
   const double max_gap_us = options.max_gap_s * 1e6;
   int next_allowed = 0;
   for (int start = 0; start < n; ++start) {
     // Candidate starts: every `stride` frames, or with start_at_keyframe the
     // first keyframe at least `stride` frames after the previous candidate.
     if (start < next_allowed) continue;
-    if (options.start_at_keyframe && !sd[chain[start]].is_key_frame) continue;
+    if (options.start_at_keyframe && !keyframes[start]) continue;
     next_allowed = start + options.stride;
     std::vector<int> picks;
     picks.reserve(options.num_frames);
@@ -101,48 +90,17 @@ std::vector<Clip> SelectSceneClips(const Nuscenes& nusc,
       if (summary) ++summary->dropped;
       continue;
     }
-    Clip clip;
-    clip.scene = scene;
+    ChainClip clip;
     clip.start_index = start;
     clip.resample_rate_hz = options.target_rate_hz;
     clip.id = MakeClipId(scene_name, start, options.target_rate_hz,
                          options.keyframes_only);
     for (int p : picks) {
-      clip.sample_data.push_back(chain[p]);
+      clip.frames.push_back(p);
       clip.timestamps.push_back(ts[p]);
     }
     clips.push_back(std::move(clip));
     if (summary) ++summary->clips;
-  }
-  return clips;
-}
-
-std::vector<Clip> SelectClips(const Nuscenes& nusc,
-                              const ClipOptions& options,
-                              ClipSelectionSummary* summary) {
-  std::vector<Clip> clips;
-  // Clip ids are unique per run: a scene whose name an earlier scene already
-  // has gets its clips named "<name>~<first 8 characters of its token>_..."
-  // (stable: it depends only on the tables), never the other scene's folder.
-  std::set<std::string> names_seen;
-  for (size_t s = 0; s < nusc.scenes().size(); ++s) {
-    auto scene_clips =
-        SelectSceneClips(nusc, static_cast<int32_t>(s), options, summary);
-    const auto& scene = nusc.scenes()[s];
-    if (!names_seen.insert(scene.name).second) {
-      const std::string plain = PathComponentFromName(scene.name, "scene name");
-      // '~' never comes out of PathComponentFromName for a name's own bytes.
-      const std::string unique =
-          plain + "~" + scene.token.ToString().substr(0, 8);
-      for (auto& c : scene_clips) c.id = unique + c.id.substr(plain.size());
-    }
-    for (auto& c : scene_clips) clips.push_back(std::move(c));
-  }
-  std::set<std::string> ids;
-  for (const auto& c : clips) {
-    GEODRIVE_CHECK_INPUT(ids.insert(c.id).second, "scene tables: clip id '",
-                         c.id, "' is produced by two scenes (two scenes share "
-                         "a name and a token prefix)");
   }
   return clips;
 }

@@ -1,15 +1,14 @@
 #pragma once
-// Clip selection: runs of consecutive CAM_FRONT sample_data (samples and
-// sweeps, 12 Hz) inside one scene, as Vista's 25-frame clips, with a stride
-// between clip starts and optional resampling to a target rate (e.g. 10 Hz). A
-// clip never crosses a scene boundary. Clip ids come from dataset/clip_id.h
-// (MakeClipId) and depend only on the dataset contents.
+// Clip selection, dataset-generic: runs of consecutive frames of one camera
+// (nuScenes CAM_FRONT sample_data, 12 Hz; Waymo FRONT, 10 Hz) inside one scene,
+// as Vista's 25-frame clips, with a stride between clip starts and optional
+// resampling to a target rate (e.g. 10 Hz). A clip never crosses a scene
+// boundary. Clip ids come from dataset/clip_id.h (MakeClipId) and depend only
+// on the dataset contents.
 
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include "dataset/nuscenes.h"
 
 namespace geodrive {
 
@@ -38,16 +37,6 @@ struct ClipOptions {
   void Check() const;
 };
 
-struct Clip {
-  std::string id;  // MakeClipId(scene name, start_index, target_rate_hz)
-  int32_t scene = kNoIndex;
-  int start_index = 0;  // index of the first frame in the scene's channel chain
-  std::vector<int32_t>
-      sample_data;  // rows of Nuscenes::sample_data(), in time order
-  std::vector<int64_t> timestamps;  // microseconds
-  int resample_rate_hz = 0;
-};
-
 struct ClipSelectionSummary {
   int scenes = 0;            // scenes visited
   int scenes_too_short = 0;  // scenes whose chain is shorter than one clip
@@ -57,14 +46,25 @@ struct ClipSelectionSummary {
   std::string BriefReport() const;
 };
 
-// All clips of all scenes, in scene then start order.
-std::vector<Clip> SelectClips(const Nuscenes& nusc,
-                              const ClipOptions& options,
-                              ClipSelectionSummary* summary = nullptr);
-// Clips of one scene.
-std::vector<Clip> SelectSceneClips(const Nuscenes& nusc,
-                                   int32_t scene,
-                                   const ClipOptions& options,
-                                   ClipSelectionSummary* summary = nullptr);
+// One clip of a frame chain (SelectChainClips).
+struct ChainClip {
+  std::string id;       // MakeClipId(scene name, start_index, rate, keyframes)
+  int start_index = 0;  // index of the first frame in the chain
+  std::vector<int> frames;          // chain indices, in time order
+  std::vector<int64_t> timestamps;  // microseconds
+  int resample_rate_hz = 0;
+};
+
+// The clips of one scene's frame chain (the reference camera's frames in time
+// order: `timestamps` in microseconds, `keyframes` whether each is an
+// annotated keyframe, same length). With options.keyframes_only the caller
+// passes the keyframe chain. Dataset-generic: adapters build the chain from
+// their own tables.
+std::vector<ChainClip> SelectChainClips(
+    const std::string& scene_name,
+    const std::vector<int64_t>& timestamps,
+    const std::vector<bool>& keyframes,
+    const ClipOptions& options,
+    ClipSelectionSummary* summary = nullptr);
 
 }  // namespace geodrive

@@ -15,19 +15,30 @@ namespace geodrive {
 
 enum class DatasetFormat {
   kNuscenes,  // nuScenes tables (v1.0-*), samples/ and sweeps/
+  kWaymo,     // Waymo Open Dataset v1: *.tfrecord segments of Frame protos
 };
 std::string ToString(DatasetFormat format);
-// "nuscenes"; throws InputError naming the accepted values otherwise.
+// "nuscenes" or "waymo"; throws InputError naming the accepted values
+// otherwise.
 DatasetFormat ParseDatasetFormat(const std::string& text);
+// The format of the dataset at `root`: kWaymo for a .tfrecord file or a
+// folder holding *.tfrecord files, else kNuscenes.
+DatasetFormat DetectDatasetFormat(const std::string& root);
+// ParseDatasetFormat(text), or DetectDatasetFormat(root) for "auto" or "".
+DatasetFormat ResolveDatasetFormat(const std::string& text,
+                                   const std::string& root);
 
 struct DriveDatasetOptions {
   // Dataset format.
   DatasetFormat format = DatasetFormat::kNuscenes;
-  // Dataset root (nuScenes: the folder holding <version>/, samples/, sweeps/).
+  // Dataset root (nuScenes: the folder holding <version>/, samples/, sweeps/;
+  // Waymo: a folder of *.tfrecord segments, or one .tfrecord file).
   std::string root;
-  // Table version (nuScenes: v1.0-mini, v1.0-trainval, ...).
+  // Table version (nuScenes: v1.0-mini, v1.0-trainval, ...; unused by Waymo).
   std::string version = "v1.0-mini";
   // Camera channel whose frames make the clips (the reference camera).
+  // Waymo: its camera names (FRONT, FRONT_LEFT, ...); "CAM_FRONT" and the
+  // like are read as "FRONT".
   std::string channel = "CAM_FRONT";
   // Surround view: the cameras every clip carries (DriveClip::rig), the
   // reference `channel` among them (put first); {"all"} = every camera of the
@@ -41,7 +52,7 @@ struct DriveDatasetOptions {
   // Frames per clip.
   int clip_frames = 25;
   // Source frames between consecutive clip starts (6 = one keyframe interval
-  // of nuScenes' 12 Hz camera).
+  // of nuScenes' 12 Hz camera; Waymo frames are 10 Hz).
   int clip_stride = 6;
   // True if the options are usable (root set, clip_frames >= 2, stride >= 1).
   bool Check() const;

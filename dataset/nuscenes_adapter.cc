@@ -8,13 +8,15 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <sstream>
 
-#include "dataset/clips.h"
 #include "dataset/drive_dataset.h"
+#include "dataset/internal/adapters.h"
 #include "dataset/nuscenes.h"
+#include "dataset/nuscenes_clips.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -298,13 +300,35 @@ std::string ToString(DatasetFormat format) {
   switch (format) {
     case DatasetFormat::kNuscenes:
       return "nuscenes";
+    case DatasetFormat::kWaymo:
+      return "waymo";
   }
   return "nuscenes";
 }
 
 DatasetFormat ParseDatasetFormat(const std::string& text) {
   if (text == "nuscenes") return DatasetFormat::kNuscenes;
-  throw InputError("unknown dataset format '" + text + "' (expected nuscenes)");
+  if (text == "waymo") return DatasetFormat::kWaymo;
+  throw InputError("unknown dataset format '" + text +
+                   "' (expected nuscenes or waymo)");
+}
+
+DatasetFormat DetectDatasetFormat(const std::string& root) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_regular_file(root, ec))
+    return fs::path(root).extension() == ".tfrecord" ? DatasetFormat::kWaymo
+                                                     : DatasetFormat::kNuscenes;
+  if (!fs::is_directory(root, ec)) return DatasetFormat::kNuscenes;
+  for (const auto& e : fs::directory_iterator(root, ec))
+    if (e.path().extension() == ".tfrecord") return DatasetFormat::kWaymo;
+  return DatasetFormat::kNuscenes;
+}
+
+DatasetFormat ResolveDatasetFormat(const std::string& text,
+                                   const std::string& root) {
+  return text.empty() || text == "auto" ? DetectDatasetFormat(root)
+                                        : ParseDatasetFormat(text);
 }
 
 const std::vector<std::string>& NuscenesRigLayout() {
@@ -357,6 +381,8 @@ std::unique_ptr<DriveDataset> OpenDriveDataset(
   switch (options.format) {
     case DatasetFormat::kNuscenes:
       return std::make_unique<NuscenesDriveDataset>(options);
+    case DatasetFormat::kWaymo:
+      return OpenWaymoDriveDataset(options);
   }
   throw InputError("unknown dataset format");
 }

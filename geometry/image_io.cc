@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "geometry/util/files.h"
@@ -26,8 +28,8 @@ enum class Mode { kColor, kGray, kUnchanged };
 
 struct Request {
   Mode mode = Mode::kColor;
-  bool rgb = false;     // kColor: RGB order instead of OpenCV's BGR
-  JpegScale scale;      // JPEG only: decode at scale.num / scale.denom
+  bool rgb = false;  // kColor: RGB order instead of OpenCV's BGR
+  JpegScale scale;   // JPEG only: decode at scale.num / scale.denom
 };
 
 bool IsJpeg(const std::vector<uint8_t>& b) {
@@ -673,8 +675,35 @@ void CheckImageBytes(const std::string& path,
 }
 
 // Reads an image file; throws InputError naming it when unreadable.
+std::mutex& ResolverMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+std::map<std::string, ImageBytesResolver>& Resolvers() {
+  static std::map<std::string, ImageBytesResolver> resolvers;
+  return resolvers;
+}
+
+// True and *bytes if a registered resolver owns `path`.
+bool ResolveImageBytes(const std::string& path, std::vector<uint8_t>* bytes) {
+  std::vector<ImageBytesResolver> resolvers;
+  {
+    std::lock_guard<std::mutex> lock(ResolverMutex());
+    if (Resolvers().empty()) return false;
+    for (const auto& [name, r] : Resolvers()) resolvers.push_back(r);
+  }
+  for (const ImageBytesResolver& r : resolvers)
+    if (r(path, bytes)) return true;
+  return false;
+}
+
 std::vector<uint8_t> ReadImageBytes(const std::string& path) {
-  std::vector<uint8_t> bytes = ReadFileBytes(path, kMaxImageFileBytes);
+  std::vector<uint8_t> bytes;
+  if (ResolveImageBytes(path, &bytes)) {
+    CheckImageBytes(path, bytes);
+    return bytes;
+  }
+  bytes = ReadFileBytes(path, kMaxImageFileBytes);
   CheckImageBytes(path, bytes);
   return bytes;
 }
@@ -756,6 +785,16 @@ std::vector<uint8_t> EncodeJpeg(const std::string& path,
 }
 
 }  // namespace
+
+void RegisterImageBytesResolver(const std::string& name,
+                                ImageBytesResolver resolver) {
+  std::lock_guard<std::mutex> lock(ResolverMutex());
+  Resolvers().emplace(name, std::move(resolver));
+}
+
+std::vector<uint8_t> EncodePngImage(const cv::Mat& image) {
+  return EncodePng("in-memory PNG", image);
+}
 
 cv::Mat ReadImageRgb(const std::string& path) {
   return Decode(path, {Mode::kColor, /*rgb=*/true, JpegScale{}});

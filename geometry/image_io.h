@@ -10,6 +10,7 @@
 // atomic (temporary file + rename) and deterministic.
 
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -122,5 +123,19 @@ ImageHeader ReadImageHeader(const ImageFile& file);
 // ReadImageRgbScaled(path, scale) of a file already read: the same pixels and
 // errors; scale 1/1 is ReadImageRgb(path).
 cv::Mat DecodeImageRgb(const ImageFile& file, JpegScale scale = {});
+
+// Images stored inside container files (a camera image of a Waymo TFRecord
+// frame, "<segment>.tfrecord#<record>:<CAMERA>"): a resolver returns true and
+// fills *bytes (an encoded JPEG or PNG) for the paths it owns, false for the
+// others. Every reader above (and ReadImageFile) asks the registered
+// resolvers before opening `path` as a file; errors name `path`.
+using ImageBytesResolver =
+    std::function<bool(const std::string& path, std::vector<uint8_t>* bytes)>;
+// Registers `resolver` for the process (thread-safe; each `name` once, a
+// second registration under the same name is ignored).
+void RegisterImageBytesResolver(const std::string& name,
+                                ImageBytesResolver resolver);
+// A PNG of `image` (8-bit RGB or gray, 16-bit RGB or gray), in memory.
+std::vector<uint8_t> EncodePngImage(const cv::Mat& image);
 
 }  // namespace geodrive

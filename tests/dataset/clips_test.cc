@@ -1,6 +1,6 @@
 // Clip selection on the fixture (scenes of 55 CAM_FRONT frames at 12 Hz).
 
-#include "dataset/clips.h"
+#include "dataset/nuscenes_clips.h"
 
 #include <gtest/gtest.h>
 
