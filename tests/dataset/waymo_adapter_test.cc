@@ -5,6 +5,7 @@
 // them.
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -19,6 +20,7 @@
 #include "dataset/drive_dataset.h"
 #include "dataset/waymo/tfrecord.h"
 #include "dataset/waymo/waymo_frame.h"
+#include "dataset/waymo/waymo_range_image.h"
 #include "geometry/image_io.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
@@ -39,7 +41,25 @@ void SetTransform(const Eigen::Matrix4d& m, wod::Transform* t) {
 
 // Frame `i` of a small segment: FRONT and FRONT_LEFT 64x48 cameras (FRONT
 // with distortion), the vehicle 1 m further along +x per frame, one car.
-std::string SegmentFrame(const std::string& context, int i) {
+// zlib of a MatrixFloat [2, 4, 4] whose ranges are 5, 6, ... with one empty
+// pixel (range 0).
+std::string SmallRangeImage() {
+  wod::MatrixFloat m;
+  for (int d : {2, 4, 4}) m.mutable_shape()->add_dims(d);
+  for (int i = 0; i < 8; ++i)
+    for (float v : {i == 5 ? 0.0f : 5.0f + i, 0.5f, 0.1f, -1.0f}) m.add_data(v);
+  const std::string bytes = m.SerializeAsString();
+  uLongf size = compressBound(bytes.size());
+  std::string out(size, '\0');
+  compress2(reinterpret_cast<Bytef*>(out.data()), &size,
+            reinterpret_cast<const Bytef*>(bytes.data()), bytes.size(), 6);
+  out.resize(size);
+  return out;
+}
+
+std::string SegmentFrame(const std::string& context,
+                         int i,
+                         bool lidar = false) {
   wod::Frame frame;
   frame.mutable_context()->set_name(context);
   frame.set_timestamp_micros(1000000 + 100000 * i);
@@ -64,6 +84,17 @@ std::string SegmentFrame(const std::string& context, int i) {
     image->set_name(name);
     image->set_image(std::string(jpeg.begin(), jpeg.end()));
   }
+  if (lidar) {
+    wod::LaserCalibration* cal =
+        frame.mutable_context()->add_laser_calibrations();
+    cal->set_name(wod::LaserName::TOP);
+    cal->add_beam_inclinations(-0.3);
+    cal->add_beam_inclinations(0.04);
+    SetTransform(Eigen::Matrix4d::Identity(), cal->mutable_extrinsic());
+    wod::Laser* laser = frame.add_lasers();
+    laser->set_name(wod::LaserName::TOP);
+    laser->mutable_ri_return1()->set_range_image_compressed(SmallRangeImage());
+  }
   wod::Label* label = frame.add_laser_labels();
   label->set_id("car0");
   label->set_type(wod::Label::TYPE_VEHICLE);
@@ -81,9 +112,11 @@ std::string SegmentFrame(const std::string& context, int i) {
 // A segment of `n` frames written out of time order (reversed).
 std::string WriteSegment(const std::string& dir,
                          const std::string& context,
-                         int n) {
+                         int n,
+                         bool lidar = false) {
   std::vector<std::string> records;
-  for (int i = n - 1; i >= 0; --i) records.push_back(SegmentFrame(context, i));
+  for (int i = n - 1; i >= 0; --i)
+    records.push_back(SegmentFrame(context, i, lidar));
   const std::string path = dir + "/" + context + ".tfrecord";
   WriteTfRecordFile(path, records);
   return path;
@@ -153,6 +186,35 @@ TEST(WaymoAdapter, SegmentGivesClipsInTimeOrder) {
     EXPECT_EQ(rgb.rows, 48);
   }
   EXPECT_THROW(dataset->LoadClip("segment_b_v2_0001"), InputError);
+}
+
+TEST(WaymoAdapter, RangeImagesGiveOneSweepPerFrame) {
+  const std::string dir = test::MakeTempDir("waymo_adapter_lidar");
+  const std::string path = WriteSegment(dir, "seg", 3, /*lidar=*/true);
+  const auto dataset = OpenDriveDataset(WaymoOptions(dir));
+  EXPECT_TRUE(dataset->HasLidar());
+  EXPECT_THAT(dataset->Describe(), ::testing::Not(HasSubstr("no range")));
+  const DriveClip clip = dataset->LoadClip("seg_0000");
+  ASSERT_NE(clip.lidar, nullptr);
+  ASSERT_EQ(clip.lidar->Sweeps().size(), 3u);
+  const std::vector<WaymoFrame> frames = ReadWaymoFrames(path);
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_EQ(clip.frames[k].keyframe_sweep, std::optional<size_t>(k));
+    const LidarSweepInfo& sweep = clip.lidar->Sweeps()[k];
+    EXPECT_EQ(sweep.timestamp_us, clip.frames[k].timestamp_us);
+    EXPECT_NEAR(sweep.WorldFromSensor().translation.x(), k, 1e-12);
+    // Frame k is record 2 - k (written reversed).
+    const WaymoFrame& frame = frames[2 - k];
+    const std::vector<Eigen::Vector3d> want = WaymoRangeImagePoints(
+        DecodeWaymoRangeImage(frame.lasers[0].return1, 4, path, 2 - k, "TOP"),
+        frame.laser_calibrations[0]);
+    const PointCloud cloud = clip.lidar->Load(k);
+    ASSERT_EQ(cloud.positions.size(), want.size());
+    EXPECT_EQ(want.size(), 7u);  // 8 pixels, one empty
+    for (size_t p = 0; p < want.size(); ++p)
+      EXPECT_LE((cloud.positions[p].cast<double>() - want[p]).norm(), 1e-5);
+    EXPECT_EQ(clip.lidar->Boxes(k).size(), 1u);
+  }
 }
 
 TEST(WaymoAdapter, RigCarriesEveryCamera) {
