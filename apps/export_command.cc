@@ -30,7 +30,8 @@ CommandRunner SetupExport(CLI::App& app) {
                  "A build-dataset output (OUT: manifest.jsonl, pairs/)")
       ->required();
   app.add_option("--format", a->formats,
-                 "FORMAT[,FORMAT...]: geodrive-upstream, streetcrafter")
+                 "FORMAT[,FORMAT...]: geodrive-upstream, streetcrafter, "
+                 "gen3c")
       ->required();
   app.add_option("--val-fraction", a->options.val_fraction,
                  "Formats with train/val lists: fraction of the scenes listed "
@@ -54,8 +55,8 @@ CommandRunner SetupExport(CLI::App& app) {
 GEODRIVE_REGISTER_COMMAND(
     export_pairs,
     "export",
-    "Write other trainers' files (streetcrafter, geodrive-upstream) for the "
-    "pairs of a build-dataset output",
+    "Write other trainers' files (streetcrafter, gen3c, geodrive-upstream) "
+    "for the pairs of a build-dataset output",
     SetupExport);
 
 }  // namespace geodrive

@@ -135,12 +135,10 @@ void BuildDatasetOptions::Check() const {
   for (const ExportFormat format : exports) {
     const ExportRequirements req =
         CreateExporter(format, export_options)->Requirements();
-    const int need = std::max(req.exact_frames, req.min_frames);
-    GEODRIVE_CHECK_INPUT(
-        (req.exact_frames <= 0 || clip_frames == req.exact_frames) &&
-            clip_frames >= req.min_frames,
-        "build-dataset: --export ", ToString(format), " needs ", need,
-        " frames per clip; --clip-frames is ", clip_frames);
+    GEODRIVE_CHECK_INPUT(AcceptsFrameCount(req, clip_frames),
+                         "build-dataset: --export ", ToString(format),
+                         " needs ", FrameCountText(req),
+                         " per clip; --clip-frames is ", clip_frames);
     // A guidance is the points on black: the released preset puts the real
     // image in frame 0.
     GEODRIVE_CHECK_INPUT(

@@ -17,6 +17,7 @@ struct FormatName {
 constexpr FormatName kFormatNames[] = {
     {ExportFormat::kGeodriveUpstream, "geodrive-upstream"},
     {ExportFormat::kStreetCrafter, "streetcrafter"},
+    {ExportFormat::kGen3c, "gen3c"},
 };
 
 }  // namespace
@@ -78,21 +79,38 @@ std::unique_ptr<Exporter> CreateExporter(ExportFormat format,
       return internal::CreateGeodriveUpstreamExporter(options);
     case ExportFormat::kStreetCrafter:
       return internal::CreateStreetCrafterExporter(options);
+    case ExportFormat::kGen3c:
+      return internal::CreateGen3cExporter(options);
   }
   ThrowInputError("--export", "unknown format");
+}
+
+bool AcceptsFrameCount(const ExportRequirements& req, int num_frames) {
+  if (req.exact_frames > 0 && num_frames != req.exact_frames) return false;
+  if (num_frames < req.min_frames) return false;
+  return req.frame_step <= 0 ||
+         (num_frames - req.min_frames) % req.frame_step == 0;
+}
+
+std::string FrameCountText(const ExportRequirements& req) {
+  if (req.exact_frames > 0) return std::to_string(req.exact_frames) + " frames";
+  if (req.frame_step <= 0) return std::to_string(req.min_frames) + " frames";
+  const int first = req.min_frames, step = req.frame_step;
+  const int offset = first % step;
+  std::string text = std::to_string(first) + ", " +
+                     std::to_string(first + step) + ", ... frames (" +
+                     std::to_string(step) + " N";
+  if (offset > 0) text += " + " + std::to_string(offset);
+  return text + ")";
 }
 
 void CheckClipForExport(const Exporter& exporter,
                         const std::string& clip_id,
                         int num_frames) {
   const ExportRequirements req = exporter.Requirements();
-  const std::string name = ToString(exporter.Format());
-  GEODRIVE_CHECK_INPUT(req.exact_frames <= 0 || num_frames == req.exact_frames,
-                       clip_id, ": ", name, " needs ", req.exact_frames,
-                       " frames; this clip has ", num_frames);
-  GEODRIVE_CHECK_INPUT(num_frames >= req.min_frames, clip_id, ": ", name,
-                       " needs ", req.min_frames, " frames; this clip has ",
-                       num_frames);
+  GEODRIVE_CHECK_INPUT(AcceptsFrameCount(req, num_frames), clip_id, ": ",
+                       ToString(exporter.Format()), " needs ",
+                       FrameCountText(req), "; this clip has ", num_frames);
 }
 
 }  // namespace geodrive

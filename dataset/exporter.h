@@ -34,10 +34,13 @@ enum class ExportFormat {
   // StreetCrafter's video-diffusion trainer (video_diffusion/train.py):
   // OUT/streetcrafter/meta_info_{train,val}.json.
   kStreetCrafter,
+  // GEN3C's inference input (gen3c_dynamic.py): one folder per clip,
+  // OUT/gen3c/<clip>/{rgb.mp4, depth.npz, mask.npz, camera.npz}.
+  kGen3c,
 };
 // Every format, in enum order.
 std::vector<ExportFormat> AllExportFormats();
-// "geodrive-upstream", "streetcrafter".
+// "geodrive-upstream", "streetcrafter", "gen3c".
 std::string ToString(ExportFormat format);
 // Parses one format name; throws InputError listing the names otherwise.
 ExportFormat ParseExportFormat(const std::string& text);
@@ -53,6 +56,9 @@ struct ExportRequirements {
   int min_frames = 0;
   // Frames a clip must have exactly (0 = any count from min_frames on).
   int exact_frames = 0;
+  // Frame counts beyond min_frames come in steps of this many (0 = any
+  // count): min_frames + frame_step N (GEN3C: 121, 241, ...).
+  int frame_step = 0;
   // Size the frames and the condition are written at; 0 = the pair's size
   // (--size). A size other than the pair's renders the condition a second
   // time at that size (never a resize of ours).
@@ -134,6 +140,12 @@ class Exporter {
 // The exporter of `format`.
 std::unique_ptr<Exporter> CreateExporter(ExportFormat format,
                                          const ExportOptions& options = {});
+
+// True when a clip of `num_frames` frames meets `req`'s frame counts.
+bool AcceptsFrameCount(const ExportRequirements& req, int num_frames);
+// The frame counts `req` accepts, in words: "25 frames", "121, 241, ...
+// frames (120 N + 1)".
+std::string FrameCountText(const ExportRequirements& req);
 
 // Throws InputError "<clip_id>: <format> needs N frames; this clip has M"
 // when a clip of `num_frames` frames breaks `exporter`'s requirements.

@@ -13,6 +13,7 @@ std::unique_ptr<Exporter> CreateGeodriveUpstreamExporter(
     const ExportOptions& options);
 std::unique_ptr<Exporter> CreateStreetCrafterExporter(
     const ExportOptions& options);
+std::unique_ptr<Exporter> CreateGen3cExporter(const ExportOptions& options);
 
 }  // namespace internal
 }  // namespace geodrive

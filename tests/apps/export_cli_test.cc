@@ -21,6 +21,11 @@ TEST(ExportCli, BadArgumentsExitTwoWithOneLineNamingTheProblem) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {" export --pairs /nonexistent --format streetcrafter", "/nonexistent"},
       {" export --pairs " + out + " --format gen4c", "unknown format 'gen4c'"},
+      {" export --pairs /nonexistent --format gen3c", "/nonexistent"},
+      {" build-dataset --dataroot " + out + " --out " + out +
+           "/x --export gen3c --clip-frames 41",
+       "gen3c needs 121, 241, ... frames (120 N + 1) per clip; --clip-frames "
+       "is 41"},
       {" build-dataset --dataroot " + out + " --out " + out +
            "/x --export streetcrafter --clip-frames 20",
        "streetcrafter needs 25 frames per clip; --clip-frames is 20"},
