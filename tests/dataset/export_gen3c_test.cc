@@ -77,6 +77,16 @@ const std::string& Export() {
   return out;
 }
 
+// The clip as the builder loads it (121 frames).
+DriveClip LoadClip() {
+  DriveDatasetOptions dopt;
+  dopt.root = World();
+  dopt.clip_frames = kFrames;
+  DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
+  EXPECT_EQ(clip.num_frames(), kFrames);
+  return clip;
+}
+
 std::string ClipDir() { return Export() + "/gen3c/" + kClip; }
 
 // Another length is refused naming 120 N + 1, per clip and up front.
@@ -144,9 +154,7 @@ TEST(ExportGen3c, CamerasAreOursInvertedAndAtTheExportSize) {
   ASSERT_EQ(k.shape, (std::vector<int64_t>{kFrames, 3, 3}));
   const PairMeta meta = ReadPairMeta(Export() + "/pairs/" + kClip);
   ASSERT_EQ(meta.world_from_cam.size(), static_cast<size_t>(kFrames));
-  DriveDatasetOptions dopt;
-  dopt.root = World();
-  const DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
+  const DriveClip clip = LoadClip();
   const PinholeCamera& full = clip.frames.front().camera;
   const Eigen::Matrix3d want_k =
       ApplyResizeSpec(full, ComputeResizeSpec(full.width, full.height, kWidth,
@@ -184,9 +192,8 @@ TEST(ExportGen3c, WorldPointsProjectWhereTheExportedDepthSays) {
   const NpyArray depth = NpzReader(ClipDir() + "/depth.npz").Read("depth");
   ASSERT_EQ(depth.dtype, NpyDtype::kFloat32);
   ASSERT_EQ(depth.shape, (std::vector<int64_t>{kFrames, kHeight, kWidth}));
-  DriveDatasetOptions dopt;
-  dopt.root = World();
-  const DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
+  const DriveClip clip = LoadClip();
+  ASSERT_EQ(clip.num_frames(), kFrames);
   const SyntheticWorld world(SyntheticWorldOptionsFor(WorldOptions(), 0));
   const SyntheticTimeline tl = MakeSyntheticTimeline(WorldOptions(), 0);
   const PinholeCamera& full = clip.frames.front().camera;
@@ -239,6 +246,26 @@ TEST(ExportGen3c, WorldPointsProjectWhereTheExportedDepthSays) {
       rel.size(), 100 * median, 100 * within);
   EXPECT_LT(median, 0.01);
   EXPECT_GT(within, 0.85);
+}
+
+// `geodrive export --format gen3c` on a pair built without --export writes
+// the same bytes as build-dataset --export gen3c.
+TEST(ExportGen3c, ExportingBuiltPairsGivesTheSameFiles) {
+  const std::string out = test::MakeTempDir("export_gen3c_later");
+  BuildDatasetOptions o = Options(out);
+  o.exports.clear();
+  ASSERT_EQ(BuildDataset(o).built, 1);
+  ASSERT_FALSE(fs::exists(out + "/pairs/" + kClip + "/gen3c"));
+  EXPECT_EQ(ExportPairs(out, {ExportFormat::kGen3c}, o.export_options,
+                        /*quiet=*/true),
+            1);
+  for (const char* name : {"rgb.mp4", "depth.npz", "mask.npz", "camera.npz"}) {
+    const std::string got =
+        test::ReadFile(out + "/gen3c/" + kClip + "/" + name);
+    EXPECT_GT(got.size(), 0u) << name;
+    EXPECT_TRUE(got == test::ReadFile(ClipDir() + "/" + name)) << name;
+  }
+  EXPECT_EQ(ReadPairMeta(out + "/pairs/" + kClip).files.at("gen3c"), "gen3c");
 }
 
 // The real scene-0916 as keyframes (41, the whole scene: no 121-frame clip)
