@@ -36,6 +36,8 @@
 
 namespace geodrive {
 namespace internal {
+// Named: a unity build puts the exporters' files in one translation unit.
+namespace gen3c_export {
 namespace {
 
 namespace fs = std::filesystem;
@@ -170,10 +172,11 @@ int Gen3cExporter::Finish(const std::string& out) const {
 }
 
 }  // namespace
+}  // namespace gen3c_export
 
 std::unique_ptr<Exporter> CreateGen3cExporter(const ExportOptions& options) {
   (void)options;  // no split: GEN3C has no train/val lists
-  return std::make_unique<Gen3cExporter>();
+  return std::make_unique<gen3c_export::Gen3cExporter>();
 }
 
 }  // namespace internal
