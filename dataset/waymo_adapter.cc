@@ -9,7 +9,10 @@
 // annotated keyframe (10 Hz); clips are SelectChainClips over the segment's
 // frames in time order.
 //
-// Per frame: world_from_ego is the frame pose (vehicle -> world),
+// Per frame: world_from_ego is the camera image's own vehicle pose at its own
+// time (CameraImage.pose and pose_timestamp; nuScenes' rule: a camera's pose
+// is its own ego pose, never the LiDAR's) where the frame stores one, the
+// frame pose (vehicle -> world) otherwise;
 // ego_from_cam the camera's extrinsic in OpenCV axes (VehicleFromOpenCvCamera),
 // the camera Waymo's f_u f_v c_u c_v. A frame's image is the path
 // "<segment>.tfrecord#<record>:<CAMERA>", which the image readers
@@ -56,6 +59,9 @@ struct WaymoFrameInfo {
   int64_t timestamp_us = 0;
   Rigid3d world_from_vehicle;
   std::vector<WaymoCameraCalibration> cameras;
+  // Per camera with a stored CameraImage.pose: the vehicle pose at the
+  // image's own time and that time (microseconds).
+  std::map<std::string, std::pair<Rigid3d, int64_t>> image_poses;
   std::vector<ClipBox> boxes;
   bool has_range_images = false;
 };
@@ -124,6 +130,15 @@ WaymoSegment ReadSegment(const std::string& file) {
     info.timestamp_us = frame.timestamp_micros;
     info.world_from_vehicle = Rigid3d::FromMatrix(frame.world_from_vehicle);
     info.cameras = frame.camera_calibrations;
+    for (const WaymoCameraImage& image : frame.images) {
+      if (!image.has_pose) continue;
+      const int64_t t_us =
+          image.pose_timestamp > 0
+              ? static_cast<int64_t>(std::llround(image.pose_timestamp * 1e6))
+              : frame.timestamp_micros;
+      info.image_poses[ToString(image.name)] = {
+          Rigid3d::FromMatrix(image.world_from_vehicle), t_us};
+    }
     info.boxes = WorldBoxes(frame);
     info.has_range_images = frame.has_range_images;
     seg.has_range_images |= frame.has_range_images;
@@ -430,9 +445,15 @@ class WaymoDriveDataset : public DriveDataset {
         seg.name + "_" + std::to_string(f.timestamp_us) + "_" + camera;
     out.relative_path = fs::path(f.file).filename().string() + member;
     out.image_path = f.file + member;
-    out.timestamp_us = f.timestamp_us;
+    // Each camera at its own capture: the image's own vehicle pose and time
+    // where the frame stores them (CameraImage.pose, pose_timestamp), the
+    // frame's otherwise. The boxes stay at the frame (LiDAR) time.
+    const auto own = f.image_poses.find(camera);
+    out.timestamp_us =
+        own != f.image_poses.end() ? own->second.second : f.timestamp_us;
     out.is_keyframe = true;
-    out.world_from_ego = f.world_from_vehicle;
+    out.world_from_ego =
+        own != f.image_poses.end() ? own->second.first : f.world_from_vehicle;
     out.ego_from_cam = Rigid3d::FromMatrix(calib->vehicle_from_camera);
     out.world_from_cam = out.world_from_ego * out.ego_from_cam;
     const WaymoIntrinsics& k = calib->intrinsics;

@@ -264,8 +264,14 @@ TEST(WaymoAdapter, RealFrameEqualsTheReader) {
     for (const auto& c : frame.camera_calibrations)
       if (ToString(c.name) == stream.channel) cal = &c;
     ASSERT_NE(cal, nullptr) << stream.channel;
+    // The camera at its own capture: the image's own vehicle pose.
+    const WaymoCameraImage* image = nullptr;
+    for (const auto& im : frame.images)
+      if (ToString(im.name) == stream.channel) image = &im;
+    ASSERT_NE(image, nullptr) << stream.channel;
+    ASSERT_TRUE(image->has_pose) << stream.channel;
     const Eigen::Matrix4d expected =
-        frame.world_from_vehicle * cal->vehicle_from_camera;
+        image->world_from_vehicle * cal->vehicle_from_camera;
     EXPECT_LE((f.world_from_cam.ToMatrix() - expected).cwiseAbs().maxCoeff(),
               1e-9)
         << stream.channel;
@@ -275,7 +281,9 @@ TEST(WaymoAdapter, RealFrameEqualsTheReader) {
     EXPECT_NEAR(f.camera.cy, cal->intrinsics.c_v, 1e-9);
     EXPECT_EQ(f.camera.width, cal->width);
     EXPECT_EQ(f.camera.height, cal->height);
-    EXPECT_EQ(f.timestamp_us, frame.timestamp_micros);
+    EXPECT_EQ(f.timestamp_us, std::llround(image->pose_timestamp * 1e6));
+    // Not the frame's: the camera fires after the frame time.
+    EXPECT_NE(f.timestamp_us, frame.timestamp_micros);
     ASSERT_EQ(f.boxes.size(), frame.laser_labels.size());
     for (size_t b = 0; b < f.boxes.size(); ++b) {
       const WaymoBox3d& w = frame.laser_labels[b];
