@@ -17,9 +17,9 @@ namespace {
 
 // CRC-32C by hand: Debian bookworm has no C++ package that offers it
 // conveniently (abseil 20220623 predates absl/crc; protobuf and TurboJPEG keep
-// theirs internal; libcrc32c would be one more dependency for 40 lines). A
-// 256-entry table, one byte a step (≈ 0.5-1 GB/s: a 5 MB frame costs a few
-// milliseconds, small beside its JPEG decodes).
+// theirs internal; libcrc32c would be one more dependency for 40 lines). SSE
+// 4.2's crc32 instruction where the CPU has it, a 256-entry table (one byte a
+// step, about 0.5-1 GB/s) otherwise; both give the same value (test).
 constexpr uint32_t kCrc32cPolynomial = 0x82f63b78u;  // reflected Castagnoli
 
 std::array<uint32_t, 256> MakeCrc32cTable() {
@@ -71,13 +71,48 @@ std::string ReadAt(int fd, uint64_t offset, void* out, size_t size) {
 
 }  // namespace
 
-uint32_t Crc32c(const void* data, size_t size, uint32_t crc) {
+namespace {
+
+// The table, one byte a step.
+uint32_t Crc32cTable(const uint8_t* p, size_t size, uint32_t crc) {
   static const std::array<uint32_t, 256> table = MakeCrc32cTable();
-  const uint8_t* p = static_cast<const uint8_t*>(data);
-  crc = ~crc;
   for (size_t i = 0; i < size; ++i)
     crc = table[(crc ^ p[i]) & 0xffu] ^ (crc >> 8);
-  return ~crc;
+  return crc;
+}
+
+#if defined(__x86_64__)
+// SSE 4.2's crc32 instruction computes the same Castagnoli CRC, eight bytes
+// a step (about 20x the table): a Waymo frame of a few MB is read and checked
+// once per camera image and per LiDAR load.
+__attribute__((target("sse4.2"))) uint32_t Crc32cSse42(const uint8_t* p,
+                                                       size_t size,
+                                                       uint32_t crc) {
+  uint64_t c = crc;
+  for (; size >= 8; size -= 8, p += 8) {
+    uint64_t v;
+    std::memcpy(&v, p, 8);
+    c = __builtin_ia32_crc32di(c, v);
+  }
+  uint32_t c32 = static_cast<uint32_t>(c);
+  for (; size > 0; --size, ++p) c32 = __builtin_ia32_crc32qi(c32, *p);
+  return c32;
+}
+#endif
+
+}  // namespace
+
+uint32_t Crc32cPortable(const void* data, size_t size, uint32_t crc) {
+  return ~Crc32cTable(static_cast<const uint8_t*>(data), size, ~crc);
+}
+
+uint32_t Crc32c(const void* data, size_t size, uint32_t crc) {
+  const uint8_t* p = static_cast<const uint8_t*>(data);
+#if defined(__x86_64__)
+  static const bool sse42 = __builtin_cpu_supports("sse4.2");
+  if (sse42) return ~Crc32cSse42(p, size, ~crc);
+#endif
+  return ~Crc32cTable(p, size, ~crc);
 }
 
 uint32_t MaskCrc32c(uint32_t crc) {

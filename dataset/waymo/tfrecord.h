@@ -25,6 +25,9 @@ namespace geodrive {
 // CRC-32C (Castagnoli, reflected polynomial 0x82f63b78) of `size` bytes,
 // continuing from `crc` (0 to start).
 uint32_t Crc32c(const void* data, size_t size, uint32_t crc = 0);
+// The same with the byte table only (what Crc32c uses on CPUs without SSE
+// 4.2's crc32 instruction; for tests).
+uint32_t Crc32cPortable(const void* data, size_t size, uint32_t crc = 0);
 // TFRecord's masking of a stored CRC.
 uint32_t MaskCrc32c(uint32_t crc);
 

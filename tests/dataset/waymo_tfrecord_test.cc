@@ -47,6 +47,21 @@ TEST(WaymoTfRecord, Crc32cMatchesTheCheckValues) {
   // Continuing a CRC equals one pass over the whole.
   EXPECT_EQ(Crc32c("6789", 4, Crc32c("12345", 5)), 0xe3069283u);
   EXPECT_EQ(MaskCrc32c(0), 0xa282ead8u);
+  // The instruction path (where the CPU has it) and the table agree on every
+  // length and alignment, continued or not.
+  std::string bytes(1031, '\0');
+  for (size_t i = 0; i < bytes.size(); ++i)
+    bytes[i] = static_cast<char>((i * 2654435761u) >> 13);
+  EXPECT_EQ(Crc32cPortable("123456789", 9), 0xe3069283u);
+  for (size_t start = 0; start < 9; ++start) {
+    for (size_t size : {0, 1, 7, 8, 9, 63, 64, 1000}) {
+      const char* p = bytes.data() + start;
+      EXPECT_EQ(Crc32c(p, size), Crc32cPortable(p, size))
+          << start << " " << size;
+      EXPECT_EQ(Crc32c(p, size, 0x12345678u),
+                Crc32cPortable(p, size, 0x12345678u));
+    }
+  }
 }
 
 TEST(WaymoTfRecord, RoundTripIsExact) {
