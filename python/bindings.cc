@@ -292,8 +292,9 @@ void BindDataset(py::module_& m) {
       "open_dataset",
       [](const PathArg& root, const std::string& version,
          const std::string& frames, const std::string& channel, int clip_frames,
-         int stride) {
+         int stride, const std::string& dataset) {
         DriveDatasetOptions o;
+        o.format = ResolveDatasetFormat(dataset, root.value);
         o.root = root.value;
         o.version = version;
         o.frames = ParseClipFrameSource(frames);
@@ -306,8 +307,11 @@ void BindDataset(py::module_& m) {
       py::arg("root"), py::arg("version") = "v1.0-mini",
       py::arg("frames") = "all", py::arg("channel") = "CAM_FRONT",
       py::arg("clip_frames") = 25, py::arg("stride") = 6,
-      "Opens a nuScenes-format dataset (its tables); frames='keyframes' for "
-      "extracts without sweep files.");
+      py::arg("dataset") = "auto",
+      "Opens a driving dataset: nuScenes tables (frames='keyframes' for "
+      "extracts without sweep files) or a folder of Waymo v1 *.tfrecord "
+      "segments (channel 'CAM_FRONT' reads Waymo's FRONT); dataset='auto' "
+      "tells them apart, or 'nuscenes' / 'waymo'.");
 }
 
 // The clip: frames, poses, cameras, boxes, LiDAR sweeps.

@@ -183,3 +183,35 @@ def test_footprint_render_is_the_builders_footprint_preset(real_scene, tmp_path)
     ours = r["valid"].reshape(len(r["valid"]), -1).mean(1)
     np.testing.assert_allclose(ours, meta["quality"]["coverage"], atol=1e-12)
     assert ours[5] > 0.7      # one-pixel points: 0.496 at this frame
+
+
+def test_waymo_segments_open_like_nuscenes(tmp_path):
+    """A synthetic Waymo segment (geodrive synth --format waymo) opens through
+    the same call: clips of the FRONT camera, its poses and intrinsics, the
+    laser_labels as boxes and the TOP range image as one sweep per frame."""
+    seg = tmp_path / "waymo"
+    subprocess.run([GEODRIVE, "synth", "--format", "waymo", "--out", str(seg),
+                    "--scenes", "1", "--duration", "2.6", "--size", "64x96",
+                    "--lidar-columns", "720"], check=True, capture_output=True)
+    ds = geodrive.open_dataset(str(seg))
+    assert ds.describe().startswith("waymo")
+    assert ds.has_lidar
+    assert len(ds.clip_ids) == 1
+    clip = ds.load_clip(ds.clip_ids[0])
+    assert clip.num_frames == 25 and clip.image_size == (96, 64)
+    # Frames 0.1 s apart (10 Hz), each camera at its own capture time.
+    dt = np.diff(np.array(clip.timestamps_us))
+    assert np.all(dt == 100000)
+    # The FRONT camera looks along the vehicle's +x: its optical axis (the
+    # third column of world_from_cam) is the ego's forward direction.
+    w = np.array(clip.world_from_cam[0])
+    assert abs(np.linalg.det(w[:3, :3]) - 1) < 1e-9
+    assert w[2, 2] < 0.1  # horizontal, not looking up or down
+    assert clip.boxes(0) and clip.boxes(0)[0]["category"] == "vehicle.car"
+    assert clip.load_sweep(0).shape[0] > 1000
+    assert geodrive.open_dataset(str(seg), dataset="waymo").clip_ids == ds.clip_ids
+    try:
+        geodrive.open_dataset(str(seg), dataset="nuscenes")
+        raise AssertionError("a Waymo folder opened as nuScenes")
+    except ValueError as e:
+        assert "v1.0-mini" in str(e) or str(seg) in str(e)
