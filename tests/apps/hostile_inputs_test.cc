@@ -28,6 +28,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace hostile_inputs_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -273,4 +274,5 @@ TEST(NotRegularFiles, InfoRefusesFifosDevicesAndFolders) {
 }
 
 }  // namespace
+}  // namespace hostile_inputs_test
 }  // namespace geodrive

@@ -12,6 +12,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace info_command_test {
 namespace {
 
 using test::GeodriveBinary;
@@ -164,4 +165,5 @@ TEST(InfoCommand, BrokenTfrecordExitsTwoWithOneLine) {
 }
 
 }  // namespace
+}  // namespace info_command_test
 }  // namespace geodrive

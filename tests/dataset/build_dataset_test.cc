@@ -26,6 +26,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace build_dataset_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -461,4 +462,5 @@ TEST(BuildDataset, PairsOfOtherContentOptionsAreRebuiltOrKept) {
 }
 
 }  // namespace
+}  // namespace build_dataset_test
 }  // namespace geodrive

@@ -26,6 +26,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace lidar_dense_test {
 namespace {
 
 // A wall at 20 m seen through scan lines every 9 rows from row 60 down to the
@@ -172,9 +173,11 @@ TEST(LidarDenseReal, CoversTheSupportedAreaOfFrame0) {
 }
 
 }  // namespace
+}  // namespace lidar_dense_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace lidar_dense_test {
 namespace {
 
 // ---- Synthetic world: the completed frame-0 depth against the exact depth
@@ -241,9 +244,11 @@ TEST(LidarDenseSynthetic, CompletedDepthAgainstTheTrueDepth) {
 }
 
 }  // namespace
+}  // namespace lidar_dense_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace lidar_dense_test {
 namespace {
 
 // ---- Synthetic world: renders along the true trajectory against the
@@ -532,4 +537,5 @@ TEST(LidarDenseReal, FootprintPresetCoversMoreOfTheApproachedScene) {
 }
 
 }  // namespace
+}  // namespace lidar_dense_test
 }  // namespace geodrive

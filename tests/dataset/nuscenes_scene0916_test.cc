@@ -28,6 +28,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace nuscenes_scene0916_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -56,8 +57,7 @@ Eigen::Matrix4d Pose(const json& record) {
                                q[2].get<double>(), q[3].get<double>());
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   m.topLeftCorner<3, 3>() = rot.normalized().toRotationMatrix();
-  for (int i = 0; i < 3; ++i)
-    m(i, 3) = record["translation"][i].get<double>();
+  for (int i = 0; i < 3; ++i) m(i, 3) = record["translation"][i].get<double>();
   return m;
 }
 
@@ -131,7 +131,8 @@ TEST_F(Scene0916, LidarToCameraMatchesRawTableReference) {
   const json& lidar_sd = sample_data.at(lidar_token);
   const json& cam_cs = calib.at(cam_sd["calibrated_sensor_token"]);
   const Eigen::Matrix4d cam_from_lidar =
-      Pose(cam_cs).inverse() * Pose(ego.at(cam_sd["ego_pose_token"])).inverse() *
+      Pose(cam_cs).inverse() *
+      Pose(ego.at(cam_sd["ego_pose_token"])).inverse() *
       Pose(ego.at(lidar_sd["ego_pose_token"])) *
       Pose(calib.at(lidar_sd["calibrated_sensor_token"]));
   Eigen::Matrix3d K;
@@ -142,9 +143,9 @@ TEST_F(Scene0916, LidarToCameraMatchesRawTableReference) {
   // Under test: the adapter's DriveClip poses and camera.
   const Eigen::Matrix4d ours =
       (cam.world_from_cam.Inverse() * sweep.WorldFromSensor()).ToMatrix();
-  const LidarProjection proj = ProjectLidarToImage(
-      points.positions, ours, cam.camera.K(), cam.camera.width,
-      cam.camera.height);
+  const LidarProjection proj =
+      ProjectLidarToImage(points.positions, ours, cam.camera.K(),
+                          cam.camera.width, cam.camera.height);
   const LidarProjection devkit = MapPointCloudToImage(
       points.positions, sweep.ego_from_sensor, sweep.world_from_ego,
       cam.world_from_ego, cam.ego_from_cam, cam.camera.K(), cam.camera.width,
@@ -168,7 +169,8 @@ TEST_F(Scene0916, LidarToCameraMatchesRawTableReference) {
     const auto it = by_index.find(devkit.indices[k]);
     if (it == by_index.end()) continue;
     ++common;
-    worst_devkit = std::max(worst_devkit, (devkit.pixels[k] - it->second).norm());
+    worst_devkit =
+        std::max(worst_devkit, (devkit.pixels[k] - it->second).norm());
   }
   std::printf(
       "CAM_FRONT %s: %zu LiDAR points in the image (devkit rule %zu); max "
@@ -219,8 +221,8 @@ TEST_F(Scene0916, BoxesTo2dMatchRawTableReference) {
       const Eigen::Vector4d corner((i & 1) ? l / 2 : -l / 2,
                                    (i & 2) ? w / 2 : -w / 2,
                                    (i & 4) ? h / 2 : -h / 2, 1.0);
-      const Eigen::Vector3d c = (cam_from_global * global_from_box * corner)
-                                    .head<3>();
+      const Eigen::Vector3d c =
+          (cam_from_global * global_from_box * corner).head<3>();
       if (c.z() <= 0.1) continue;
       const Eigen::Vector3d p = K * c;
       uv.emplace_back(p.x() / p.z(), p.y() / p.z());
@@ -231,8 +233,10 @@ TEST_F(Scene0916, BoxesTo2dMatchRawTableReference) {
     if (uv.empty()) continue;
     Box2d ref{1e300, 1e300, -1e300, -1e300};
     for (const auto& p : uv) {
-      ref.xmin = std::min(ref.xmin, p.x()), ref.ymin = std::min(ref.ymin, p.y());
-      ref.xmax = std::max(ref.xmax, p.x()), ref.ymax = std::max(ref.ymax, p.y());
+      ref.xmin = std::min(ref.xmin, p.x()),
+      ref.ymin = std::min(ref.ymin, p.y());
+      ref.xmax = std::max(ref.xmax, p.x()),
+      ref.ymax = std::max(ref.ymax, p.y());
     }
     for (double e : {ours->xmin - ref.xmin, ours->ymin - ref.ymin,
                      ours->xmax - ref.xmax, ours->ymax - ref.ymax})
@@ -242,9 +246,10 @@ TEST_F(Scene0916, BoxesTo2dMatchRawTableReference) {
         << b.instance_id;
     ++compared;
   }
-  std::printf("%d boxes of %s in front of CAM_FRONT: max 2D-box deviation "
-              "%.2e px\n",
-              compared, cam.relative_path.c_str(), worst);
+  std::printf(
+      "%d boxes of %s in front of CAM_FRONT: max 2D-box deviation "
+      "%.2e px\n",
+      compared, cam.relative_path.c_str(), worst);
   EXPECT_GE(compared, 10);
   EXPECT_LT(worst, 1e-6);
 }
@@ -267,7 +272,8 @@ TEST_F(Scene0916, KeyframeClipsBuildWithLidarGeometry) {
   EXPECT_EQ(s.failed, 0) << "see " << out << "/failures.jsonl";
   EXPECT_EQ(s.built, 3);
   EXPECT_TRUE(fs::exists(out + "/report.html"));
-  const std::vector<ManifestEntry> entries = ReadManifest(out + "/manifest.jsonl");
+  const std::vector<ManifestEntry> entries =
+      ReadManifest(out + "/manifest.jsonl");
   ASSERT_EQ(entries.size(), 3u);
   std::string metas, boxes;
   for (const ManifestEntry& e : entries) {
@@ -277,10 +283,11 @@ TEST_F(Scene0916, KeyframeClipsBuildWithLidarGeometry) {
     EXPECT_EQ(m.pose_units, "metres");
     ASSERT_FALSE(m.quality.psnr_static.empty());
     ASSERT_TRUE(m.quality.psnr_static.front().has_value());
-    std::printf("%s: coverage frame 0 %.3f (mean %.3f), PSNR frame 0 over "
-                "covered static pixels %.2f dB\n",
-                m.clip_id.c_str(), m.quality.coverage.front(), e.mean_coverage,
-                *m.quality.psnr_static.front());
+    std::printf(
+        "%s: coverage frame 0 %.3f (mean %.3f), PSNR frame 0 over "
+        "covered static pixels %.2f dB\n",
+        m.clip_id.c_str(), m.quality.coverage.front(), e.mean_coverage,
+        *m.quality.psnr_static.front());
     // LiDAR scan lines cover a few percent of the image (9-18 %
     // at one pixel per point; the paper preset splats 1 px radius).
     EXPECT_GT(m.quality.coverage.front(), 0.03);
@@ -296,18 +303,20 @@ TEST_F(Scene0916, KeyframeClipsBuildWithLidarGeometry) {
                          "/tests/dataset/validate_json.py ";
   const std::string schema = GEODRIVE_SOURCE_DIR "/data_schema/";
   std::string log;
-  EXPECT_EQ(test::RunCommand(py + schema + "pair_meta.schema.json" + metas, &log),
+  EXPECT_EQ(
+      test::RunCommand(py + schema + "pair_meta.schema.json" + metas, &log), 0)
+      << log;
+  EXPECT_EQ(test::RunCommand(py + schema + "boxes.schema.json" + boxes, &log),
             0)
       << log;
-  EXPECT_EQ(test::RunCommand(py + schema + "boxes.schema.json" + boxes, &log), 0)
-      << log;
-  EXPECT_EQ(test::RunCommand(py + "--jsonl " + schema +
-                                 "manifest_line.schema.json " + out +
-                                 "/manifest.jsonl",
-                             &log),
-            0)
+  EXPECT_EQ(
+      test::RunCommand(py + "--jsonl " + schema + "manifest_line.schema.json " +
+                           out + "/manifest.jsonl",
+                       &log),
+      0)
       << log;
 }
 
 }  // namespace
+}  // namespace nuscenes_scene0916_test
 }  // namespace geodrive

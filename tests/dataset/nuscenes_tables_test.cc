@@ -16,6 +16,7 @@
 #include "tests/dataset/nuscenes_fixture.h"
 
 namespace geodrive {
+namespace nuscenes_tables_test {
 namespace {
 
 using test::NuscenesFixture;
@@ -418,4 +419,5 @@ TEST_F(NuscenesBadInput, LidarFileSizeNotMultipleOf20) {
 }
 
 }  // namespace
+}  // namespace nuscenes_tables_test
 }  // namespace geodrive

@@ -30,6 +30,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace reconstruction_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -747,9 +748,11 @@ TEST(Reconstruction, BuilderBuildsGenericNpzLikeMonst3r) {
 }
 
 }  // namespace
+}  // namespace reconstruction_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace reconstruction_test {
 namespace {
 
 // MoGe's --maps folder from frame 0 of a MonST3R folder: depth.exr ("Y"),
@@ -888,9 +891,11 @@ TEST(Reconstruction, BuilderTakesMogeFrameZeroAndTheClipTrajectory) {
 }
 
 }  // namespace
+}  // namespace reconstruction_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace reconstruction_test {
 namespace {
 
 // The writer docs/RECONSTRUCTIONS.md gives for the generic npz, run by NumPy:
@@ -938,4 +943,5 @@ np.savez(sys.argv[1],
 }
 
 }  // namespace
+}  // namespace reconstruction_test
 }  // namespace geodrive

@@ -20,6 +20,7 @@
 
 namespace geodrive {
 namespace diffusion {
+namespace model_test {
 namespace {
 
 struct TinyInputs {
@@ -480,5 +481,6 @@ TEST(CogVideoXScheduler, DpmSecondOrderStepEqualsFormula) {
 }
 
 }  // namespace
+}  // namespace model_test
 }  // namespace diffusion
 }  // namespace geodrive

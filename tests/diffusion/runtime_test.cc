@@ -21,6 +21,7 @@
 
 namespace geodrive {
 namespace diffusion {
+namespace runtime_test {
 namespace {
 
 TEST(DiffusionRuntime, ParsesDevicesAndDtypesWholeString) {
@@ -289,5 +290,6 @@ TEST(DiffusionRuntime, SampleInBf16GivesFloat32LatentsNearFp32) {
 }
 
 }  // namespace
+}  // namespace runtime_test
 }  // namespace diffusion
 }  // namespace geodrive

@@ -22,6 +22,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace deep_metrics_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -448,6 +449,7 @@ TEST(DeepMetrics, CliLpipsFidFvdAndReferenceStatsCache) {
 }
 
 }  // namespace
+}  // namespace deep_metrics_test
 }  // namespace geodrive
 
 #endif  // GEODRIVE_WITH_TORCH

@@ -16,6 +16,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace eval_cli_test {
 namespace {
 
 std::vector<cv::Mat> MakeClip(int frames, uint32_t seed, int noise) {
@@ -154,4 +155,5 @@ TEST(EvalCli, BadInputExitsTwoWithOneLine) {
 }
 
 }  // namespace
+}  // namespace eval_cli_test
 }  // namespace geodrive

@@ -9,6 +9,7 @@
 #include "tests/geometry/synthetic_pointmaps.h"
 
 namespace geodrive {
+namespace fusion_test {
 namespace {
 
 double Median(std::vector<double> v) {
@@ -159,4 +160,5 @@ TEST(Fusion, VoxelAveragesColoursAndRemovesIsolatedPoints) {
 }
 
 }  // namespace
+}  // namespace fusion_test
 }  // namespace geodrive

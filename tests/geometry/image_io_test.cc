@@ -27,6 +27,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace image_io_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -425,8 +426,8 @@ TEST(ImageIo, EncodeJpegRgbIsOpenCvsImencodeAtEveryQuality) {
   cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
   for (int quality : {1, 30, 75, 90, 95, 96, 100}) {
     std::vector<uint8_t> opencv;
-    ASSERT_TRUE(cv::imencode(".jpg", bgr, opencv,
-                             {cv::IMWRITE_JPEG_QUALITY, quality}));
+    ASSERT_TRUE(
+        cv::imencode(".jpg", bgr, opencv, {cv::IMWRITE_JPEG_QUALITY, quality}));
     EXPECT_EQ(EncodeJpegRgb(rgb, quality), opencv) << "quality " << quality;
     ASSERT_TRUE(cv::imencode(".jpg", gray, opencv,
                              {cv::IMWRITE_JPEG_QUALITY, quality}));
@@ -1151,4 +1152,5 @@ TEST(ImageIo, WriteErrorsNameTheFile) {
 }
 
 }  // namespace
+}  // namespace image_io_test
 }  // namespace geodrive

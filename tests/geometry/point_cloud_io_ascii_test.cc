@@ -23,6 +23,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace point_cloud_io_ascii_test {
 namespace {
 
 std::string ErrorOf(const std::function<void()>& fn) {
@@ -325,4 +326,5 @@ TEST(AsciiChunks, FilesOf32MiBAndMoreReadInPartsGiveTheSameCloud) {
 }
 
 }  // namespace
+}  // namespace point_cloud_io_ascii_test
 }  // namespace geodrive

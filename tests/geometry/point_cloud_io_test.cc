@@ -24,6 +24,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace point_cloud_io_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -454,9 +455,11 @@ TEST(PointCloudIo, WritesLeaveNoTemporaries) {
 }
 
 }  // namespace
+}  // namespace point_cloud_io_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace point_cloud_io_test {
 namespace {
 
 // Cuts a valid file at many lengths: every read either succeeds or throws
@@ -498,9 +501,11 @@ TEST(Pcd, EveryTruncationFailsCleanly) {
 }
 
 }  // namespace
+}  // namespace point_cloud_io_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace point_cloud_io_test {
 namespace {
 
 // Our binary PLY is plain enough for numpy alone: parse the header,
@@ -550,9 +555,11 @@ print('numpy parsed', n, 'vertices')
 }
 
 }  // namespace
+}  // namespace point_cloud_io_test
 }  // namespace geodrive
 
 namespace geodrive {
+namespace point_cloud_io_test {
 namespace {
 
 // Appends binary values in either byte order (PLY bodies written by hand).
@@ -1219,4 +1226,5 @@ print('open3d', o3d.__version__, 'wrote 5 files and read', len(names))
 }
 
 }  // namespace
+}  // namespace point_cloud_io_test
 }  // namespace geodrive

@@ -11,6 +11,7 @@
 #include "tests/geometry/synthetic_pointmaps.h"
 
 namespace geodrive {
+namespace pose_refinement_test {
 namespace {
 
 double Median(std::vector<double> v) {
@@ -268,4 +269,5 @@ TEST(PixelSampler, StratifiedAndSeeded) {
 }
 
 }  // namespace
+}  // namespace pose_refinement_test
 }  // namespace geodrive

@@ -12,6 +12,7 @@
 #include "tests/common/test_util.h"
 
 namespace geodrive {
+namespace trajectory_io_test {
 namespace {
 
 using ::testing::HasSubstr;
@@ -291,4 +292,5 @@ TEST(Monst3rIntrinsics, RejectsMalformedRows) {
 }
 
 }  // namespace
+}  // namespace trajectory_io_test
 }  // namespace geodrive
