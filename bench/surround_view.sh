@@ -13,7 +13,8 @@
 # (`geodrive synth --cameras all --scenes 1 --duration 4`, 1600x900, 4 clips
 # of 25 frames at 12 Hz); for the real scene-0916 pass
 # ../shared/data/real/nuscenes_scene0916 v1.0-mini-extract keyframes.
-# Environment: GEOMETRY (default lidar-dense), PRESET (default footprint),
+# Environment: GEOMETRY (default lidar, build-dataset's default), PRESET
+# (default paper, likewise; GEOMETRY=lidar-dense PRESET=footprint for the dense rig),
 # MAX_CLIPS (default 4), CORE (pin to this core, default none).
 set -euo pipefail
 if [[ $# -lt 1 ]]; then
@@ -24,8 +25,8 @@ GEODRIVE=$1
 ROOT=${2:-}
 VERSION=${3:-v1.0-mini}
 FRAMES=${4:-all}
-GEOMETRY=${GEOMETRY:-lidar-dense}
-PRESET=${PRESET:-footprint}
+GEOMETRY=${GEOMETRY:-lidar}
+PRESET=${PRESET:-paper}
 MAX_CLIPS=${MAX_CLIPS:-4}
 work=$(mktemp -d "${TMPDIR:-/tmp}/surround_view.XXXXXX")
 trap 'rm -rf "$work"' EXIT
