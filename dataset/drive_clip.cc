@@ -1,6 +1,7 @@
 #include "dataset/drive_clip.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 
 #include "geometry/util/status.h"
@@ -36,6 +37,38 @@ DriveClip DriveClip::View(int k) const {
     view.frames = rig[k].frames;
   }
   return view;
+}
+
+std::shared_ptr<const std::vector<Eigen::Vector3d>>
+LidarProvider::StaticInWorld(size_t index) const {
+  const LidarSweepInfo& info = Sweeps().at(index);
+  const PointCloud sweep = Load(index);
+  // [R | t]: one matrix product per point instead of a quaternion rotation.
+  const Matrix3x4d world_from_lidar = info.WorldFromSensor().ToMatrix3x4();
+  const std::vector<ClipBox> boxes = Boxes(index);
+  // Each box's bounding sphere (grown by the margin): the exact test runs
+  // only for points inside it.
+  std::vector<double> radius2(boxes.size());
+  for (size_t b = 0; b < boxes.size(); ++b) {
+    const double r =
+        boxes[b].box.HalfExtents().norm() + kBoxMarginM * std::sqrt(3.0);
+    radius2[b] = r * r;
+  }
+  auto out = std::make_shared<std::vector<Eigen::Vector3d>>();
+  out->reserve(sweep.size());
+  for (size_t i = 0; i < sweep.size(); ++i) {
+    const Eigen::Vector3d p = sweep.positions[i].cast<double>();
+    if (p.head<2>().norm() < kEgoReturnRadiusM) continue;
+    const Eigen::Vector3d g =
+        world_from_lidar.leftCols<3>() * p + world_from_lidar.col(3);
+    bool in_box = false;
+    for (size_t b = 0; b < boxes.size() && !in_box; ++b) {
+      in_box = (g - boxes[b].box.center).squaredNorm() <= radius2[b] &&
+               boxes[b].box.Contains(g, kBoxMarginM);
+    }
+    if (!in_box) out->push_back(g);
+  }
+  return out;
 }
 
 std::vector<size_t> LidarProvider::SweepsBetween(int64_t lo_us,

@@ -93,6 +93,15 @@ class LidarProvider {
   virtual PointCloud Load(size_t index) const = 0;
   // Boxes at the sweep's time (world frame), for removing moving objects.
   virtual std::vector<ClipBox> Boxes(size_t index) const = 0;
+  // Sweep `index`'s static returns in the world frame: Load's points less the
+  // ego vehicle's own (within kEgoReturnRadiusM of the sensor, horizontally)
+  // and those within kBoxMarginM of a box at the sweep's time (Boxes).
+  // Computed each call; a provider that several cameras share (surround
+  // view) memoises it.
+  virtual std::shared_ptr<const std::vector<Eigen::Vector3d>> StaticInWorld(
+      size_t index) const;
+  static constexpr double kEgoReturnRadiusM = 2.5;
+  static constexpr double kBoxMarginM = 0.3;
 
   // Sweeps with lo_us <= timestamp <= hi_us, in time order.
   std::vector<size_t> SweepsBetween(int64_t lo_us, int64_t hi_us) const;

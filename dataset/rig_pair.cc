@@ -36,12 +36,16 @@ namespace geodrive {
 namespace internal {
 namespace {
 
-// The scene's sweeps for every camera of the rig, read once: Load() memoised.
-// Thread-safe for concurrent const calls, as the interface requires.
+// The scene's sweeps for every camera of the rig, read once: Load() and the
+// static returns in the world (StaticInWorld: the box test) memoised, so each
+// camera's scene source only moves them into its own frame. Thread-safe for
+// concurrent const calls, as the interface requires.
 class SharedSweeps : public LidarProvider {
  public:
   explicit SharedSweeps(std::shared_ptr<const LidarProvider> base)
-      : base_(std::move(base)), cache_(base_->Sweeps().size()) {}
+      : base_(std::move(base)),
+        cache_(base_->Sweeps().size()),
+        static_cache_(base_->Sweeps().size()) {}
   const std::vector<LidarSweepInfo>& Sweeps() const override {
     return base_->Sweeps();
   }
@@ -54,11 +58,26 @@ class SharedSweeps : public LidarProvider {
   std::vector<ClipBox> Boxes(size_t index) const override {
     return base_->Boxes(index);
   }
+  std::shared_ptr<const std::vector<Eigen::Vector3d>> StaticInWorld(
+      size_t index) const override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (const auto& slot = static_cache_.at(index)) return slot;
+    }
+    // Computed outside the lock (it loads through Load, which locks).
+    auto points = LidarProvider::StaticInWorld(index);
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto& slot = static_cache_.at(index);
+    if (!slot) slot = std::move(points);
+    return slot;
+  }
 
  private:
   std::shared_ptr<const LidarProvider> base_;
   mutable std::mutex mutex_;
   mutable std::vector<std::shared_ptr<const PointCloud>> cache_;
+  mutable std::vector<std::shared_ptr<const std::vector<Eigen::Vector3d>>>
+      static_cache_;
 };
 
 // Everything one camera of the pair needs between the stages.
