@@ -90,7 +90,12 @@ double PointRectDistance(const Eigen::Vector2d& p, const Rect& r) {
   return std::hypot(du, dn);
 }
 
-int64_t CellKey(int64_t i, int64_t j) { return (i << 32) ^ (j & 0xffffffff); }
+// Two 32-bit cell indices in one key (shifted as unsigned: a negative index
+// shifted left is undefined).
+int64_t CellKey(int64_t i, int64_t j) {
+  return static_cast<int64_t>((static_cast<uint64_t>(i) << 32) ^
+                              (static_cast<uint64_t>(j) & 0xffffffffu));
+}
 
 // Points of one class (ground or obstacle) bucketed in a BEV grid.
 struct PointGrid {
@@ -154,7 +159,8 @@ void SegmentGround(const PlanningScene& scene,
   auto key = [&](size_t point, int64_t i, int64_t j) {
     const int64_t sweep =
         scene.static_cloud_sweep.empty() ? 0 : scene.static_cloud_sweep[point];
-    return CellKey(i, j) ^ (sweep << 56);
+    return CellKey(i, j) ^
+           static_cast<int64_t>(static_cast<uint64_t>(sweep) << 56);
   };
   auto index = [cell](double v) {
     return static_cast<int64_t>(std::floor(v / cell));
