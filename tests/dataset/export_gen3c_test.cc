@@ -273,7 +273,7 @@ TEST(ExportGen3c, ExportingBuiltPairsGivesTheSameFiles) {
 // and per clip for its 41-frame clip.
 TEST(ExportGen3c, RealScene0916KeyframeClipIsRefused) {
   const std::string root = test::RealDataPath("nuscenes_scene0916");
-  if (!fs::is_directory(root)) GTEST_SKIP() << "no " << root;
+  ASSERT_TRUE(fs::is_directory(root)) << "real data missing: " << root;
   BuildDatasetOptions o;
   o.dataroot = root;
   o.version = "v1.0-mini-extract";

@@ -363,8 +363,8 @@ TEST(WaymoAdapter, RealFrameEqualsTheReader) {
 }
 
 TEST(WaymoAdapter, ClipsCommandListsTheClips) {
-  if (!std::filesystem::exists(test::GeodriveBinary()))
-    GTEST_SKIP() << "geodrive not built";
+  ASSERT_TRUE(std::filesystem::exists(test::GeodriveBinary()))
+      << test::GeodriveBinary() << " not built";
   const std::string dir = test::MakeTempDir("waymo_adapter_cli");
   WriteSegment(dir, "seg", 5);
   std::string output;
