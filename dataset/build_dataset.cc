@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -58,6 +59,59 @@ PairEditMode ParsePairEditMode(const std::string& text) {
   if (text == "none") return PairEditMode::kNone;
   ThrowInputError("edit mode", "'", text, "' is not one of 3d, 2d, none");
 }
+
+std::string ShiftedPairId(const std::string& clip_id, double offset_m) {
+  // The magnitude to the millimetre: "%.3f" with trailing zeros dropped.
+  char text[64];
+  std::snprintf(text, sizeof text, "%.3f", std::abs(offset_m));
+  std::string m = text;
+  while (!m.empty() && m.back() == '0') m.pop_back();
+  if (!m.empty() && m.back() == '.') m.pop_back();
+  std::replace(m.begin(), m.end(), '.', 'p');
+  if (m == "0") return clip_id + "_shift_0m";
+  return clip_id + (offset_m > 0 ? "_shift_left_" : "_shift_right_") + m + "m";
+}
+
+std::vector<Rigid3d> ShiftTrajectoryLaterally(
+    const std::vector<Rigid3d>& scene_from_cam,
+    const Rigid3d& ego_from_cam,
+    double offset_m) {
+  const Rigid3d shift(Eigen::Quaterniond::Identity(),
+                      Eigen::Vector3d(0, offset_m, 0));
+  const Rigid3d moved_cam = ego_from_cam.Inverse() * shift * ego_from_cam;
+  std::vector<Rigid3d> out;
+  out.reserve(scene_from_cam.size());
+  for (const Rigid3d& pose : scene_from_cam) out.push_back(pose * moved_cam);
+  return out;
+}
+
+namespace {
+
+// The novel-view options (BuildDatasetOptions::lateral_offsets_m).
+void CheckLateralOffsets(const BuildDatasetOptions& opt) {
+  if (opt.lateral_offsets_m.empty()) return;
+  std::set<std::string> ids;
+  for (const double d : opt.lateral_offsets_m) {
+    GEODRIVE_CHECK_INPUT(std::isfinite(d) && std::abs(d) <= 100,
+                         "build-dataset: lateral offset ", d,
+                         " m is not a number within [-100, 100] m");
+    GEODRIVE_CHECK_INPUT(ids.insert(ShiftedPairId("", d)).second,
+                         "build-dataset: lateral offset ", d,
+                         " m is listed twice (offsets are kept to the mm)");
+  }
+  GEODRIVE_CHECK_INPUT(opt.cameras.empty(),
+                       "build-dataset: lateral offsets (novel views) are "
+                       "single-camera; drop --cameras");
+  GEODRIVE_CHECK_INPUT(opt.edit_mode != PairEditMode::k2d,
+                       "build-dataset: lateral offsets need --edit-mode 3d "
+                       "or none (the 2D crop-and-paste follows the recorded "
+                       "view's boxes)");
+  GEODRIVE_CHECK_INPUT(opt.exports.empty(),
+                       "build-dataset: lateral offsets (novel views) write "
+                       "GeoDrive pairs only; drop --export");
+}
+
+}  // namespace
 
 std::string BuildDatasetOptions::SceneSourceName() const {
   if (geometry != "auto") return geometry;
@@ -129,6 +183,7 @@ void BuildDatasetOptions::Check() const {
                          " is single-camera (the trainers read one camera's "
                          "clips); drop --cameras or --export");
   }
+  CheckLateralOffsets(*this);
   GEODRIVE_CHECK_INPUT(export_options.Check(),
                        "build-dataset: --val-fraction must be in [0, 1], got ",
                        export_options.val_fraction);
@@ -164,6 +219,9 @@ std::string BuildDatasetOptions::ContentOptionsJson() const {
   if (refine_poses) j["refine_poses"] = true;
   if (!cameras.empty()) j["cameras"] = cameras;
   if (!remove_instances.empty()) j["remove_instances"] = remove_instances;
+  // Novel-view pairs: each pair's own offset is in its id and meta.json, so
+  // that a run with more offsets keeps the pairs already built.
+  if (!lateral_offsets_m.empty()) j["novel_views"] = true;
   // One name as before ("geodrive-upstream"), so that earlier pairs keep
   // their hash.
   if (!exports.empty()) j["export"] = ToString(exports);
@@ -704,9 +762,56 @@ void CheckClipIdsAreFolderNames(const std::vector<std::string>& clips,
   }
 }
 
+// The pair ids of `clips`: the clip ids themselves, or with lateral offsets
+// every clip's novel-view pairs (clip order, then the offsets' order), each
+// recorded in `novel` (optional) with its source clip and offset.
+std::vector<std::string> PairIds(const std::vector<std::string>& clips,
+                                 const BuildDatasetOptions& opt,
+                                 std::map<std::string, PairNovelView>* novel) {
+  if (opt.lateral_offsets_m.empty()) return clips;
+  std::vector<std::string> ids;
+  for (const std::string& clip : clips) {
+    for (const double d : opt.lateral_offsets_m) {
+      ids.push_back(ShiftedPairId(clip, d));
+      if (novel) (*novel)[ids.back()] = PairNovelView{clip, d};
+    }
+  }
+  return ids;
+}
+
 }  // namespace
 
 namespace internal {
+
+const PairNovelView* NovelViewOf(const ClipContext& ctx,
+                                 const std::string& pair_id) {
+  if (ctx.novel_views == nullptr) return nullptr;
+  const auto it = ctx.novel_views->find(pair_id);
+  return it == ctx.novel_views->end() ? nullptr : &it->second;
+}
+
+void ShiftScene(const DriveClip& clip,
+                const PairNovelView& view,
+                ConditionScene* scene) {
+  GEODRIVE_CHECK_INPUT(!clip.frames.empty(), clip.id, ": clip has no frames");
+  GEODRIVE_CHECK_INPUT(
+      scene->metric(), clip.id, ": a lateral offset of ", view.lateral_offset_m,
+      " m needs metric geometry; the scene (", scene->description,
+      ") is not in metres (use --geometry lidar, or MonST3R "
+      "with LiDAR for its scale)");
+  scene->trajectory.world_from_cam = ShiftTrajectoryLaterally(
+      scene->trajectory.world_from_cam, clip.frames.front().ego_from_cam,
+      view.lateral_offset_m);
+}
+
+void MarkNovelView(const std::string& pair_id,
+                   const PairNovelView& view,
+                   ConditionRender* cond,
+                   PairMeta* meta) {
+  meta->clip_id = pair_id;
+  meta->novel_view = view;
+  for (auto& psnr : cond->psnr_static) psnr.reset();
+}
 
 DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& opt) {
   DriveDatasetOptions dso;
@@ -769,12 +874,16 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     }
     clips = std::move(kept);
   }
-  const std::vector<std::string> mine = ShardClips(clips, opt);
+  std::map<std::string, PairNovelView> novel_views;
+  ctx.novel_views = &novel_views;
+  const std::vector<std::string> mine =
+      ShardClips(PairIds(clips, opt, &novel_views), opt);
   summary.clips_total = static_cast<int>(mine.size());
 
   const std::string suffix = ShardSuffix(opt.shard_index, opt.shard_count);
   RunRecord run;
-  run.clips.insert(dataset->ClipIds().begin(), dataset->ClipIds().end());
+  for (const std::string& id : PairIds(dataset->ClipIds(), opt, nullptr))
+    run.clips.insert(id);
   run.options_hash = StableHash64(opt.ContentOptionsJson());
   run.inputs = opt.InputsJson();
   run.keep_mismatched = opt.keep_mismatched;

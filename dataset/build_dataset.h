@@ -79,6 +79,15 @@ struct BuildDatasetOptions {
   // clip rendered into every camera; per camera gt_<CAM>.mp4 and
   // cond_<CAM>.mp4, a rig-layout preview.png, meta.json views and seams.
   std::vector<std::string> cameras;
+  // Novel views (`geodrive nvs-set`): for every clip and every offset here,
+  // one pair whose condition is rendered along the clip's camera trajectory
+  // shifted sideways, every frame's ego pose moved along its own y axis by
+  // the offset (metres; ego frame x forward, y left, z up: positive = left),
+  // the camera carried with it rigidly; its ground truth is the clip's real
+  // frames. Pair ids are ShiftedPairId(clip, offset). Empty = one pair per
+  // clip along the recorded trajectory. Needs metric geometry, a single
+  // camera, edit mode 3d or none and no --export.
+  std::vector<double> lateral_offsets_m;
   // Output video.
   int width = 720, height = 480;
   // Output framing: plain resize (GeoDrive training) or center crop
@@ -136,6 +145,22 @@ struct BuildDatasetOptions {
   // hash); a pair of other inputs is never taken as built.
   std::string InputsJson() const;
 };
+
+// The id of the novel-view pair of `clip_id` at lateral offset `offset_m`
+// (BuildDatasetOptions::lateral_offsets_m): "<clip>_shift_left_3m",
+// "<clip>_shift_right_1p5m", "<clip>_shift_0m" (the magnitude in metres to
+// the millimetre, trailing zeros dropped, the decimal point written "p").
+std::string ShiftedPairId(const std::string& clip_id, double offset_m);
+
+// `scene_from_cam` moved sideways: per frame, the camera's ego (through the
+// camera's mounting `ego_from_cam`) moved by `offset_m` along the ego's own
+// y axis (left positive), the camera with it:
+// scene_from_cam[i] * cam_from_ego * T(0, offset_m, 0) * ego_from_cam. The
+// scene must be metric (metres).
+std::vector<Rigid3d> ShiftTrajectoryLaterally(
+    const std::vector<Rigid3d>& scene_from_cam,
+    const Rigid3d& ego_from_cam,
+    double offset_m);
 
 // Frame-0 figures of the pairs built in a run, averaged over the pairs that
 // have them (meta.json `quality` has them per pair).

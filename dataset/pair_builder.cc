@@ -578,9 +578,12 @@ PairMeta BuildPair(const ClipContext& ctx,
   const BuildDatasetOptions& opt = *ctx.options;
   if (!opt.cameras.empty())
     return BuildRigPair(ctx, clip_id, tmp_dir, stage_seconds);
+  // A novel-view pair: its source clip, rendered along a shifted trajectory.
+  const PairNovelView* novel = NovelViewOf(ctx, clip_id);
+  const std::string& source_id = novel ? novel->source_clip_id : clip_id;
   StageTimer timer(stage_seconds);
   const DriveClip clip =
-      timer.Run("clip", [&] { return ctx.dataset->LoadClip(clip_id); });
+      timer.Run("clip", [&] { return ctx.dataset->LoadClip(source_id); });
   const bool exporting = ctx.exporters && !ctx.exporters->empty();
   if (exporting) timer.Run("export", [&] { CheckClipForExports(ctx, clip); });
   // Full-size frames only as many as the source colours from (the LiDAR
@@ -590,9 +593,10 @@ PairMeta BuildPair(const ClipContext& ctx,
   const ClipFrames frames = timer.Run(
       "gt", [&] { return ReadClipFrames(clip, opt, full_size_images); });
   const std::string path =
-      ctx.folders ? ctx.folders->Find(clip_id).value_or("") : std::string();
-  const ConditionScene scene = timer.Run(
+      ctx.folders ? ctx.folders->Find(source_id).value_or("") : std::string();
+  ConditionScene scene = timer.Run(
       "geometry", [&] { return BuildClipScene(clip, frames.full, path, opt); });
+  if (novel) timer.Run("geometry", [&] { ShiftScene(clip, *novel, &scene); });
   for (const auto& [step, s] : scene.seconds) {  // e.g. the LiDAR scale fit
     (*stage_seconds)[step] += s;
     (*stage_seconds)["geometry"] -= s;
@@ -605,6 +609,7 @@ PairMeta BuildPair(const ClipContext& ctx,
   });
   cond.completion_preview = CompletionPreview(scene);
   PairMeta meta = MakePairMeta(clip, scene, opt);
+  if (novel) MarkNovelView(clip_id, *novel, &cond, &meta);
   std::vector<std::unique_ptr<ClipExport>> exports;
   if (exporting) {
     exports = timer.Run("export", [&] {

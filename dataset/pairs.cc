@@ -1,5 +1,6 @@
 #include "dataset/pairs.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -102,6 +103,10 @@ std::string PairMetaToJson(const PairMeta& m) {
   j["frame_source"] = m.frame_source;
   if (m.frame_interval_s > 0) j["frame_interval_s"] = m.frame_interval_s;
   if (m.upstream_scene_idx) j["upstream_scene_idx"] = *m.upstream_scene_idx;
+  if (m.novel_view) {
+    j["novel_view"] = {{"source_clip_id", m.novel_view->source_clip_id},
+                       {"lateral_offset_m", m.novel_view->lateral_offset_m}};
+  }
   j["fps"] = m.fps;
   j["intrinsics"] = {{"fx", m.intrinsics.fx},
                      {"fy", m.intrinsics.fy},
@@ -317,6 +322,15 @@ PairMeta PairMetaFromJson(const std::string& text, const std::string& what) {
       m.upstream_scene_idx = static_cast<int>(
           internal::JsonInt(what, j.at("upstream_scene_idx"),
                             "upstream_scene_idx", 0, INT32_MAX));
+    if (j.contains("novel_view")) {
+      const json& nv = j.at("novel_view");
+      PairNovelView v;
+      v.source_clip_id = nv.at("source_clip_id").get<std::string>();
+      v.lateral_offset_m = nv.at("lateral_offset_m").get<double>();
+      GEODRIVE_CHECK_INPUT(std::isfinite(v.lateral_offset_m), what,
+                           ": novel_view.lateral_offset_m is not finite");
+      m.novel_view = v;
+    }
     m.files = j.at("files").get<std::map<std::string, std::string>>();
     if (j.contains("file_sizes"))
       m.file_sizes = j.at("file_sizes").get<std::map<std::string, uint64_t>>();

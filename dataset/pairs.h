@@ -87,6 +87,18 @@ struct PairSeam {
   double agreeing_fraction = 0;
 };
 
+// A novel-view pair (build-dataset lateral offsets, `geodrive nvs-set`): the
+// condition rendered along the source clip's camera trajectory shifted
+// sideways, the ground truth the clip's real frames.
+struct PairNovelView {
+  // The dataset clip the pair was made from (the pair's clip_id is
+  // <source clip>_shift_<left|right>_<offset>m).
+  std::string source_clip_id;
+  // Sideways offset of every frame's ego pose along that pose's own y axis
+  // (metres; ego frame x forward, y left, z up: positive = left).
+  double lateral_offset_m = 0;
+};
+
 struct PairMeta {
   std::string clip_id;
   std::string scene_name;
@@ -127,6 +139,10 @@ struct PairMeta {
   std::vector<PairView> views;
   // Surround view: the seam check of every overlapping camera pair.
   std::vector<PairSeam> seams;
+  // A novel-view pair: its source clip and offset (world_from_cam is then
+  // the shifted trajectory the condition was rendered along; the frames are
+  // the source clip's). Absent for a pair along the recorded trajectory.
+  std::optional<PairNovelView> novel_view;
 };
 
 // Serialises to / parses from the meta.json text. Parse errors throw InputError

@@ -41,6 +41,9 @@ struct ClipContext {
   const SceneFolders* folders = nullptr;
   // The run's exporters (BuildDatasetOptions::exports); null = none.
   const std::vector<std::unique_ptr<Exporter>>* exporters = nullptr;
+  // Novel-view pairs (BuildDatasetOptions::lateral_offsets_m): pair id ->
+  // source clip and offset; null or without the id = the pair of that clip.
+  const std::map<std::string, PairNovelView>* novel_views = nullptr;
 };
 
 // The dataset's options for a build: its clips and, with --cameras, its rig
@@ -238,6 +241,23 @@ void WritePairFolder(
     const BuildDatasetOptions& options,
     PairMeta* meta,
     const std::vector<std::unique_ptr<ClipExport>>& exports = {});
+
+// Novel-view pairs (BuildDatasetOptions::lateral_offsets_m; build_dataset.cc).
+// The source clip and offset of pair `pair_id`; null for a clip's own pair.
+const PairNovelView* NovelViewOf(const ClipContext& ctx,
+                                 const std::string& pair_id);
+// Moves the scene's trajectory sideways by the view's offset
+// (ShiftTrajectoryLaterally through frame 0's camera mounting). Throws
+// InputError naming the clip when the scene is not metric.
+void ShiftScene(const DriveClip& clip,
+                const PairNovelView& view,
+                ConditionScene* scene);
+// The pair's id and novel_view in `meta`; the static-region PSNRs dropped
+// from `cond` (the condition shows another view than the ground truth).
+void MarkNovelView(const std::string& pair_id,
+                   const PairNovelView& view,
+                   ConditionRender* cond,
+                   PairMeta* meta);
 
 // Builds one surround-view pair (options.cameras; dataset/rig.h) into
 // `tmp_dir`; returns its meta. Throws StageError.
