@@ -628,9 +628,9 @@ NpyArray ConvertNpyToFloat32(NpyArray in) {
   return out;
 }
 
-void WriteNpy(const std::string& path,
-              const NpyArray& array,
-              const NpyWriteOptions& options) {
+std::string SerializeNpy(const std::string& path,
+                         const NpyArray& array,
+                         const NpyWriteOptions& options) {
   if (options.major_version < 1 || options.major_version > 3) {
     ThrowInputError(path, "unsupported .npy format version ",
                     options.major_version, " (supported: 1, 2, 3)");
@@ -691,7 +691,13 @@ void WriteNpy(const std::string& path,
   }
   if (options.big_endian == HostIsLittleEndian())
     SwapBytes(data, nbytes / elem, elem);
-  WriteFileAtomic(path, out);
+  return out;
+}
+
+void WriteNpy(const std::string& path,
+              const NpyArray& array,
+              const NpyWriteOptions& options) {
+  WriteFileAtomic(path, SerializeNpy(path, array, options));
 }
 
 }  // namespace geodrive

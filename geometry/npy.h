@@ -28,7 +28,8 @@ size_t NpyDtypeSize(NpyDtype dtype);
 // numpy descr string in little-endian form: "<f4", "|u1", ...
 std::string NpyDtypeDescr(NpyDtype dtype);
 
-// What the header of a .npy file says (as stored: byte order and memory order of the file).
+// What the header of a .npy file says (as stored: byte order and memory order
+// of the file).
 struct NpyHeader {
   int major_version = 1;
   int minor_version = 0;
@@ -48,7 +49,8 @@ struct NpyArray {
   std::vector<uint8_t> bytes;  // NumElements() * NpyDtypeSize(dtype) bytes
 
   int64_t NumElements() const;
-  // Typed view; throws InputError if T does not match dtype (bool reads as uint8_t).
+  // Typed view; throws InputError if T does not match dtype (bool reads as
+  // uint8_t).
   template <typename T>
   const T* Data() const;
   template <typename T>
@@ -56,12 +58,14 @@ struct NpyArray {
 
   // Helpers to build arrays for writing.
   static NpyArray Float32(const std::vector<int64_t>& shape, const float* data);
-  static NpyArray Float64(const std::vector<int64_t>& shape, const double* data);
+  static NpyArray Float64(const std::vector<int64_t>& shape,
+                          const double* data);
   static NpyArray Uint8(const std::vector<int64_t>& shape, const uint8_t* data);
   static NpyArray Zeros(NpyDtype dtype, const std::vector<int64_t>& shape);
 };
 
-// Limits that protect against absurd headers (a shape that would need terabytes).
+// Limits that protect against absurd headers (a shape that would need
+// terabytes).
 struct NpyReadOptions {
   // Maximum number of bytes of array data accepted (default 8 GiB).
   uint64_t max_bytes = 8ull << 30;
@@ -71,8 +75,10 @@ struct NpyReadOptions {
 NpyHeader ReadNpyHeader(const std::string& path);
 // Reads the whole array.
 NpyArray ReadNpy(const std::string& path, const NpyReadOptions& options = {});
-// Reads a float array of any supported numeric dtype converted to float32 (bool/uint8/... too).
-NpyArray ReadNpyAsFloat32(const std::string& path, const NpyReadOptions& options = {});
+// Reads a float array of any supported numeric dtype converted to float32
+// (bool/uint8/... too).
+NpyArray ReadNpyAsFloat32(const std::string& path,
+                          const NpyReadOptions& options = {});
 // Any supported dtype converted to float32 (float16 exactly, through
 // Eigen::half).
 NpyArray ConvertNpyToFloat32(NpyArray array);
@@ -88,29 +94,57 @@ NpyArray ParseNpy(const std::string& what,
                   const NpyReadOptions& options = {});
 
 struct NpyWriteOptions {
-  int major_version = 1;       // 1, 2 or 3 (3 only changes the header encoding to utf-8)
+  int major_version =
+      1;  // 1, 2 or 3 (3 only changes the header encoding to utf-8)
   bool fortran_order = false;  // write column-major data
   bool big_endian = false;     // write big-endian data (descr '>f4' ...)
 };
-// Writes `array` to `path` atomically (temporary file + rename). Throws InputError on failure.
-void WriteNpy(const std::string& path, const NpyArray& array, const NpyWriteOptions& options = {});
+// The whole .npy file of `array` (what WriteNpy writes); `path` only names
+// the file in errors. Throws InputError on a bad shape or size.
+std::string SerializeNpy(const std::string& path,
+                         const NpyArray& array,
+                         const NpyWriteOptions& options = {});
+// Writes `array` to `path` atomically (temporary file + rename). Throws
+// InputError on failure.
+void WriteNpy(const std::string& path,
+              const NpyArray& array,
+              const NpyWriteOptions& options = {});
 
 // ---- Implementation ----
 template <typename T>
 struct NpyTypeOf;
-template <> struct NpyTypeOf<float> { static constexpr NpyDtype value = NpyDtype::kFloat32; };
-template <> struct NpyTypeOf<double> { static constexpr NpyDtype value = NpyDtype::kFloat64; };
-template <> struct NpyTypeOf<uint8_t> { static constexpr NpyDtype value = NpyDtype::kUint8; };
-template <> struct NpyTypeOf<int32_t> { static constexpr NpyDtype value = NpyDtype::kInt32; };
-template <> struct NpyTypeOf<int64_t> { static constexpr NpyDtype value = NpyDtype::kInt64; };
-template <> struct NpyTypeOf<uint16_t> { static constexpr NpyDtype value = NpyDtype::kUint16; };
+template <>
+struct NpyTypeOf<float> {
+  static constexpr NpyDtype value = NpyDtype::kFloat32;
+};
+template <>
+struct NpyTypeOf<double> {
+  static constexpr NpyDtype value = NpyDtype::kFloat64;
+};
+template <>
+struct NpyTypeOf<uint8_t> {
+  static constexpr NpyDtype value = NpyDtype::kUint8;
+};
+template <>
+struct NpyTypeOf<int32_t> {
+  static constexpr NpyDtype value = NpyDtype::kInt32;
+};
+template <>
+struct NpyTypeOf<int64_t> {
+  static constexpr NpyDtype value = NpyDtype::kInt64;
+};
+template <>
+struct NpyTypeOf<uint16_t> {
+  static constexpr NpyDtype value = NpyDtype::kUint16;
+};
 
 void NpyThrowDtypeMismatch(NpyDtype have, NpyDtype want);
 
 template <typename T>
 const T* NpyArray::Data() const {
   constexpr NpyDtype want = NpyTypeOf<T>::value;
-  if (!(dtype == want || (want == NpyDtype::kUint8 && dtype == NpyDtype::kBool))) {
+  if (!(dtype == want ||
+        (want == NpyDtype::kUint8 && dtype == NpyDtype::kBool))) {
     NpyThrowDtypeMismatch(dtype, want);
   }
   return reinterpret_cast<const T*>(bytes.data());

@@ -263,18 +263,13 @@ std::string NpzReader::ReadString(const std::string& key) const {
 void WriteNpz(const std::string& path,
               const std::vector<std::pair<std::string, NpyArray>>& arrays,
               bool compress) {
-  // Each member is a .npy (format 1.0) written by WriteNpy to a temporary
-  // file and read back: one writer of the .npy format.
+  // Each member is the .npy file (format 1.0) WriteNpy would write, built
+  // in memory.
   const std::string tmp = path + ".tmp-npz";
-  std::vector<std::vector<uint8_t>> members;
-  for (const auto& [name, array] : arrays) {
-    const std::string npy = tmp + ".npy";
-    WriteNpy(npy, array);
-    std::ifstream in(npy, std::ios::binary);
-    members.emplace_back(std::istreambuf_iterator<char>(in),
-                         std::istreambuf_iterator<char>());
-    std::remove(npy.c_str());
-  }
+  std::vector<std::string> members;
+  members.reserve(arrays.size());
+  for (const auto& [name, array] : arrays)
+    members.push_back(SerializeNpy(path + ":" + name, array));
   int error = 0;
   zip_t* z = zip_open(tmp.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &error);
   GEODRIVE_CHECK_INPUT(z != nullptr, path, ": cannot create the archive");
