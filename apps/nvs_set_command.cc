@@ -229,6 +229,8 @@ CommandRunner Setup(CLI::App& app) {
   app.add_option("--threads", o.threads, "Pairs built in parallel")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
+  app.add_flag("--lossless-frames", o.lossless_frames,
+               "Also write gt_frames/ and cond_frames/ PNG sequences");
   app.add_flag("--quiet", o.quiet, "No progress lines");
   return [a] { return Run(*a); };
 }

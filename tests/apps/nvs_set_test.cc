@@ -17,6 +17,10 @@
 #include "dataset/build_dataset.h"
 #include "dataset/drive_dataset.h"
 #include "dataset/pairs.h"
+#include "dataset/scene_source.h"
+#include "render/presets.h"
+#include "render/renderer.h"
+#include "render/video/video_io.h"
 #include "tests/common/test_util.h"
 
 namespace geodrive {
@@ -187,6 +191,64 @@ TEST(NvsSet, PairsPerSegmentAndOffsetAlongTheShiftedTrajectory) {
           << e.pair_dir << name;
     }
   }
+}
+
+// The condition equals a direct render of the segment's LiDAR scene (the
+// same scene source, paper preset, static scene) at the camera poses made
+// from the dataset's ego poses moved 3 m right: every pixel of every frame.
+TEST(NvsSet, ConditionIsTheRenderAtTheShiftedPose) {
+  const std::string out = test::MakeTempDir("nvs_set_render") + "/nvs";
+  const std::unique_ptr<DriveDataset> dataset = Dataset();
+  const DriveClip clip = dataset->LoadClip(dataset->ClipIds()[0]);
+  int rc = 0;
+  const std::string log =
+      NvsSet("--segments " + clip.scene_name +
+                 " --offsets=-3 --edit-mode none --lossless-frames --out " +
+                 out + kPairArgs,
+             &rc);
+  ASSERT_EQ(rc, 0) << log;
+  const std::string pair = out + "/pairs/" + clip.id + "_shift_right_3m";
+  const std::vector<cv::Mat> cond = ReadVideoFrames(pair + "/cond_frames");
+  ASSERT_EQ(cond.size(), clip.frames.size());
+
+  SceneInputs in;
+  in.clip = &clip;
+  const ConditionScene scene =
+      BuildConditionScene("lidar", in, SceneSourceOptions());
+  ASSERT_TRUE(scene.metric());
+  // The scene frame is the real camera at frame 0.
+  EXPECT_LT(scene.trajectory.world_from_cam[0].translation.norm(), 1e-9);
+  const Rigid3d scene_from_world = clip.frames[0].world_from_cam.Inverse();
+  const Rigid3d shift(Eigen::Quaterniond::Identity(),
+                      Eigen::Vector3d(0, -3, 0));
+  std::vector<Rigid3d> cam_from_scene;
+  for (const DriveFrame& f : clip.frames) {
+    cam_from_scene.push_back(
+        (scene_from_world * f.world_from_ego * shift * f.ego_from_cam)
+            .Inverse());
+  }
+  RenderOptions ro = PresetRenderOptions(RenderPreset::kPaper);
+  ro.width = 48;
+  ro.height = 32;
+  ro.radius_px = 1.0;
+  const std::vector<cv::Mat> direct = FinalFrames(
+      RenderFrames(scene.cloud, {scene.CameraAt(48, 32, ResizeMode::kResize)},
+                   cam_from_scene, ro),
+      RenderPreset::kPaper);
+  ASSERT_EQ(direct.size(), cond.size());
+  int64_t differing = 0, drawn = 0;
+  for (size_t i = 0; i < cond.size(); ++i) {
+    cv::Mat diff;
+    cv::absdiff(cond[i], direct[i], diff);
+    differing += cv::countNonZero(diff.reshape(1));
+    drawn += cv::countNonZero(direct[i].reshape(1));
+  }
+  std::printf(
+      "condition vs direct render at the shifted pose: %lld of %lld "
+      "drawn channel values differ\n",
+      static_cast<long long>(differing), static_cast<long long>(drawn));
+  EXPECT_GT(drawn, 0);
+  EXPECT_EQ(differing, 0);
 }
 
 TEST(NvsSet, NamedSegmentsAndOffsets) {
