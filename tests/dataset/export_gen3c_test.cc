@@ -248,24 +248,41 @@ TEST(ExportGen3c, WorldPointsProjectWhereTheExportedDepthSays) {
   EXPECT_GT(within, 0.85);
 }
 
-// `geodrive export --format gen3c` on a pair built without --export writes
-// the same bytes as build-dataset --export gen3c.
+// `geodrive export --format gen3c` on a pair built without its gen3c files
+// writes the same bytes as build-dataset --export gen3c. The pair is the
+// fixture's, copied without its gen3c folder and with gen3c taken out of its
+// meta.json: export re-renders from the dataset and the pair's options, so
+// the pair's own files are not among its inputs (one build, not two).
 TEST(ExportGen3c, ExportingBuiltPairsGivesTheSameFiles) {
   const std::string out = test::MakeTempDir("export_gen3c_later");
-  BuildDatasetOptions o = Options(out);
-  o.exports.clear();
-  ASSERT_EQ(BuildDataset(o).built, 1);
-  ASSERT_FALSE(fs::exists(out + "/pairs/" + kClip + "/gen3c"));
-  EXPECT_EQ(ExportPairs(out, {ExportFormat::kGen3c}, o.export_options,
-                        /*quiet=*/true),
-            1);
+  const std::string pair = out + "/pairs/" + kClip;
+  fs::create_directories(pair);
+  fs::copy_file(Export() + "/manifest.jsonl", out + "/manifest.jsonl");
+  for (const auto& e : fs::directory_iterator(Export() + "/pairs/" + kClip)) {
+    if (e.path().filename() == "gen3c") continue;
+    fs::copy(e.path(), pair + "/" + e.path().filename().string(),
+             fs::copy_options::recursive);
+  }
+  const std::string meta_text = test::ReadFile(pair + "/meta.json");
+  const std::string entry = "\"gen3c\": \"gen3c\"";
+  const size_t at = meta_text.find(entry);
+  ASSERT_NE(at, std::string::npos) << meta_text;
+  std::string without = meta_text;
+  without.replace(at, entry.size(), "\"gen3c_removed\": \"gen3c\"");
+  test::WriteFile(pair + "/meta.json", without);
+  ASSERT_EQ(ReadPairMeta(pair).files.count("gen3c"), 0u);
+  ASSERT_FALSE(fs::exists(pair + "/gen3c"));
+  EXPECT_EQ(
+      ExportPairs(out, {ExportFormat::kGen3c}, Options(out).export_options,
+                  /*quiet=*/true),
+      1);
   for (const char* name : {"rgb.mp4", "depth.npz", "mask.npz", "camera.npz"}) {
     const std::string got =
         test::ReadFile(out + "/gen3c/" + kClip + "/" + name);
     EXPECT_GT(got.size(), 0u) << name;
     EXPECT_TRUE(got == test::ReadFile(ClipDir() + "/" + name)) << name;
   }
-  EXPECT_EQ(ReadPairMeta(out + "/pairs/" + kClip).files.at("gen3c"), "gen3c");
+  EXPECT_EQ(ReadPairMeta(pair).files.at("gen3c"), "gen3c");
 }
 
 // The real scene-0916 as keyframes (41, the whole scene: no 121-frame clip)
