@@ -132,6 +132,7 @@ int Run(NvsArgs& a) {
     dso.version = o.version;
     dso.clip_frames = o.clip_frames;
     dso.clip_stride = o.clip_stride;
+    dso.frames = o.frames;
     const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(dso);
     o.clips = SelectSegments(a, *dataset);
   }
@@ -207,6 +208,15 @@ CommandRunner Setup(CLI::App& app) {
                  "Frames per pair, from each segment's first frame")
       ->check(CLI::Range(2, 10000))
       ->capture_default_str();
+  app.add_option("--frame-source", o.frames,
+                 "Which reference-camera frames make the clip: all, or "
+                 "keyframes (nuScenes extracts without sweep files)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, ClipFrameSource>{
+              {"all", ClipFrameSource::kAll},
+              {"keyframes", ClipFrameSource::kKeyframes}},
+          CLI::ignore_case))
+      ->default_str("all");
   app.add_option("--out", o.out, "Output folder (pairs/, manifest.jsonl)")
       ->required();
   app.add_option("--geometry", o.geometry,

@@ -69,6 +69,51 @@ Eigen::Vector2d Project(const PinholeCamera& cam, const Eigen::Vector3d& p) {
   return {cam.fx * p.x() / p.z() + cam.cx, cam.fy * p.y() / p.z() + cam.cy};
 }
 
+// The pair's condition camera against the dataset's ego poses moved by `d`
+// along their own y axis (the pair's world is the real camera at frame 0),
+// and static points 8-40 m ahead of the real camera: where the shifted
+// camera sees them, against the analytic shift of the camera point by the
+// ego's left axis (camera axes) times d. Largest errors into the outputs.
+void CheckShiftedCamera(const PairMeta& meta,
+                        const DriveClip& clip,
+                        double d,
+                        double* max_pose_err,
+                        double* max_px_err) {
+  ASSERT_EQ(meta.world_from_cam.size(), clip.frames.size());
+  const Rigid3d pair_from_world = clip.frames.front().world_from_cam.Inverse();
+  const Rigid3d shift(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, d, 0));
+  for (size_t i = 0; i < clip.frames.size(); ++i) {
+    const DriveFrame& f = clip.frames[i];
+    const Rigid3d expected =
+        pair_from_world * f.world_from_ego * shift * f.ego_from_cam;
+    const Rigid3d& got = meta.world_from_cam[i];
+    *max_pose_err = std::max({*max_pose_err,
+                              (got.translation - expected.translation).norm(),
+                              got.rotation.angularDistance(expected.rotation)});
+    // Static points 8-40 m ahead of the real camera: where the shifted
+    // camera sees them, against the analytic shift of the camera point by
+    // the ego's left axis (camera axes) times d.
+    const Rigid3d cam_from_pair =
+        f.world_from_cam.Inverse() * pair_from_world.Inverse();
+    const Eigen::Vector3d left_in_cam =
+        f.ego_from_cam.rotation.inverse() * Eigen::Vector3d(0, d, 0);
+    for (const Eigen::Vector3d& p_cam :
+         {Eigen::Vector3d(0, 0, 8), Eigen::Vector3d(-2, 1, 15),
+          Eigen::Vector3d(3, -0.5, 40)}) {
+      const Eigen::Vector3d p_pair = cam_from_pair.Inverse() * p_cam;
+      const Eigen::Vector2d seen =
+          Project(meta.intrinsics, got.Inverse() * p_pair);
+      const Eigen::Vector2d analytic =
+          Project(meta.intrinsics, p_cam - left_in_cam);
+      *max_px_err = std::max(*max_px_err, (seen - analytic).norm());
+      // Left of the ego: the scene moves right in the image.
+      if (p_cam.z() == 8 && d > 0) {
+        EXPECT_GT(seen.x(), Project(meta.intrinsics, p_cam).x());
+      }
+    }
+  }
+}
+
 TEST(NvsSet, PairsPerSegmentAndOffsetAlongTheShiftedTrajectory) {
   const std::string out = test::MakeTempDir("nvs_set") + "/nvs";
   int rc = 0;
@@ -107,41 +152,7 @@ TEST(NvsSet, PairsPerSegmentAndOffsetAlongTheShiftedTrajectory) {
     EXPECT_EQ(std::abs(d), 3.0);
     EXPECT_EQ(e.clip_id, ShiftedPairId(nv.source_clip_id, d));
     const DriveClip clip = dataset->LoadClip(nv.source_clip_id);
-    ASSERT_EQ(meta.world_from_cam.size(), clip.frames.size());
-    const Rigid3d pair_from_world =
-        clip.frames.front().world_from_cam.Inverse();
-    const Rigid3d shift(Eigen::Quaterniond::Identity(),
-                        Eigen::Vector3d(0, d, 0));
-    for (size_t i = 0; i < clip.frames.size(); ++i) {
-      const DriveFrame& f = clip.frames[i];
-      const Rigid3d expected =
-          pair_from_world * f.world_from_ego * shift * f.ego_from_cam;
-      const Rigid3d& got = meta.world_from_cam[i];
-      max_pose_err = std::max(
-          {max_pose_err, (got.translation - expected.translation).norm(),
-           got.rotation.angularDistance(expected.rotation)});
-      // Static points 8-40 m ahead of the real camera: where the shifted
-      // camera sees them, against the analytic shift of the camera point by
-      // the ego's left axis (camera axes) times d.
-      const Rigid3d cam_from_pair =
-          f.world_from_cam.Inverse() * pair_from_world.Inverse();
-      const Eigen::Vector3d left_in_cam =
-          f.ego_from_cam.rotation.inverse() * Eigen::Vector3d(0, d, 0);
-      for (const Eigen::Vector3d& p_cam :
-           {Eigen::Vector3d(0, 0, 8), Eigen::Vector3d(-2, 1, 15),
-            Eigen::Vector3d(3, -0.5, 40)}) {
-        const Eigen::Vector3d p_pair = cam_from_pair.Inverse() * p_cam;
-        const Eigen::Vector2d seen =
-            Project(meta.intrinsics, got.Inverse() * p_pair);
-        const Eigen::Vector2d analytic =
-            Project(meta.intrinsics, p_cam - left_in_cam);
-        max_px_err = std::max(max_px_err, (seen - analytic).norm());
-        // Left of the ego: the scene moves right in the image.
-        if (p_cam.z() == 8 && d > 0) {
-          EXPECT_GT(seen.x(), Project(meta.intrinsics, p_cam).x());
-        }
-      }
-    }
+    CheckShiftedCamera(meta, clip, d, &max_pose_err, &max_px_err);
     EXPECT_EQ(meta.quality.psnr_static.size(), clip.frames.size());
     for (const auto& psnr : meta.quality.psnr_static)
       EXPECT_FALSE(psnr.has_value()) << "a shifted view has no static PSNR";
@@ -249,6 +260,49 @@ TEST(NvsSet, ConditionIsTheRenderAtTheShiftedPose) {
       static_cast<long long>(differing), static_cast<long long>(drawn));
   EXPECT_GT(drawn, 0);
   EXPECT_EQ(differing, 0);
+}
+
+// The real nuScenes scene (keyframes of the extract): both pairs' condition
+// cameras follow the logged ego poses moved 3 m, the manifest has the pairs.
+TEST(NvsSet, RealNuscenesScene) {
+  const std::string root = test::RealDataPath("nuscenes_scene0916");
+  ASSERT_TRUE(fs::is_directory(root)) << root << " is missing";
+  const std::string out = test::MakeTempDir("nvs_set_real") + "/nvs";
+  std::string log;
+  ASSERT_EQ(
+      test::RunCommand(test::GeodriveBinary() + " nvs-set --dataroot " + root +
+                           " --version v1.0-mini-extract --frame-source "
+                           "keyframes --segments scene-0916 "
+                           "--offsets=-3,3 --out " +
+                           out + kPairArgs,
+                       &log),
+      0)
+      << log;
+  const std::vector<ManifestEntry> manifest =
+      ReadManifest(out + "/manifest.jsonl");
+  ASSERT_EQ(manifest.size(), 2u) << log;
+  DriveDatasetOptions o;
+  o.root = root;
+  o.version = "v1.0-mini-extract";
+  o.frames = ClipFrameSource::kKeyframes;
+  o.clip_frames = 9;
+  o.clip_stride = 1 << 30;
+  const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(o);
+  double max_pose_err = 0, max_px_err = 0;
+  for (const ManifestEntry& e : manifest) {
+    const PairMeta meta = ReadPairMeta(out + "/" + e.pair_dir);
+    ASSERT_TRUE(meta.novel_view.has_value()) << e.clip_id;
+    EXPECT_EQ(meta.novel_view->source_clip_id, "scene-0916_0000_kf");
+    CheckShiftedCamera(meta, dataset->LoadClip(meta.novel_view->source_clip_id),
+                       meta.novel_view->lateral_offset_m, &max_pose_err,
+                       &max_px_err);
+    EXPECT_GT(meta.quality.coverage.front(), 0.3) << e.clip_id;
+  }
+  std::printf("scene-0916: pose error %.3g (m / rad), static points %.3g px\n",
+              max_pose_err, max_px_err);
+  // World coordinates of ~1e3 m: double rounding ~1e-13 relative.
+  EXPECT_LT(max_pose_err, 1e-6);
+  EXPECT_LT(max_px_err, 0.01);
 }
 
 TEST(NvsSet, NamedSegmentsAndOffsets) {
