@@ -362,6 +362,37 @@ TEST(NvsSet, ClearErrors) {
   EXPECT_FALSE(fs::exists(out + "/manifest.jsonl"));
 }
 
+// A novel-view pair's meta.json (with novel_view and null static PSNRs) and
+// the manifest validate against the published schemas.
+TEST(NvsSet, PairFilesValidateAgainstTheSchemas) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("jsonschema");
+  const std::string out = test::MakeTempDir("nvs_set_schema") + "/nvs";
+  const std::unique_ptr<DriveDataset> dataset = Dataset();
+  const DriveClip clip = dataset->LoadClip(dataset->ClipIds()[2]);
+  int rc = 0;
+  std::string log = NvsSet("--segments " + clip.scene_name +
+                               " --offsets 2.5 --out " + out + kPairArgs,
+                           &rc);
+  ASSERT_EQ(rc, 0) << log;
+  const std::string py = std::string(test::kDebianPython) +
+                         " " GEODRIVE_SOURCE_DIR
+                         "/tests/dataset/validate_json.py ";
+  const std::string schemas = GEODRIVE_SOURCE_DIR "/data_schema/";
+  const std::string meta =
+      out + "/pairs/" + clip.id + "_shift_left_2p5m/meta.json";
+  const std::string text = test::ReadFile(meta);
+  EXPECT_NE(text.find("\"novel_view\""), std::string::npos) << text;
+  EXPECT_EQ(
+      test::RunCommand(py + schemas + "pair_meta.schema.json " + meta, &log), 0)
+      << log;
+  EXPECT_EQ(test::RunCommand(py + "--jsonl " + schemas +
+                                 "manifest_line.schema.json " + out +
+                                 "/manifest.jsonl",
+                             &log),
+            0)
+      << log;
+}
+
 TEST(NvsSet, PairIds) {
   EXPECT_EQ(ShiftedPairId("s_0000", 3), "s_0000_shift_left_3m");
   EXPECT_EQ(ShiftedPairId("s_0000", -3), "s_0000_shift_right_3m");
