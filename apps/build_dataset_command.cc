@@ -271,11 +271,16 @@ void AddPairOptions(CLI::App& app, Args& a) {
                  "OUT/streetcrafter/meta_info_{train,val}.json, 25-frame "
                  "samples at 576x320), gen3c (GEN3C's dynamic-video input: "
                  "OUT/gen3c/<clip>/rgb.mp4, depth.npz, mask.npz, camera.npz "
-                 "at 1280x704; --clip-frames 121, 241, ...); none")
+                 "at 1280x704; --clip-frames 121, 241, ...), rds-hq "
+                 "(Cosmos-Drive-Dreams' render_from_rds_hq.py input: "
+                 "OUT/rds_hq/<field>/<clip>.tar webdataset tars of poses, "
+                 "intrinsics at 1280x720, LiDAR and boxes; --clip-frames 121 "
+                 "or more, taken as 30 Hz); none")
       ->capture_default_str();
   app.add_option("--val-fraction", o.export_options.val_fraction,
-                 "Exports with train/val lists: fraction of the scenes "
-                 "listed for validation (by scene, seeded)")
+                 "Exports with train/val lists (streetcrafter, rds-hq): "
+                 "fraction of the scenes listed for validation (by scene, "
+                 "seeded)")
       ->capture_default_str();
   app.add_option("--split-seed", o.export_options.split_seed,
                  "Seed of the exports' by-scene train/val split")

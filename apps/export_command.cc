@@ -31,11 +31,12 @@ CommandRunner SetupExport(CLI::App& app) {
       ->required();
   app.add_option("--format", a->formats,
                  "FORMAT[,FORMAT...]: geodrive-upstream, streetcrafter, "
-                 "gen3c")
+                 "gen3c, rds-hq")
       ->required();
   app.add_option("--val-fraction", a->options.val_fraction,
-                 "Formats with train/val lists: fraction of the scenes listed "
-                 "for validation (by scene, seeded)")
+                 "Formats with train/val lists (streetcrafter, rds-hq): "
+                 "fraction of the scenes listed for validation (by scene, "
+                 "seeded)")
       ->capture_default_str();
   app.add_option("--split-seed", a->options.split_seed,
                  "Seed of the by-scene train/val split")
@@ -55,8 +56,8 @@ CommandRunner SetupExport(CLI::App& app) {
 GEODRIVE_REGISTER_COMMAND(
     export_pairs,
     "export",
-    "Write other trainers' files (streetcrafter, gen3c, geodrive-upstream) "
-    "for the pairs of a build-dataset output",
+    "Write other trainers' files (streetcrafter, gen3c, rds-hq, "
+    "geodrive-upstream) for the pairs of a build-dataset output",
     SetupExport);
 
 }  // namespace geodrive

@@ -42,7 +42,6 @@
 #include "dataset/pairs.h"
 #include "geometry/npz.h"
 #include "geometry/util/files.h"
-#include "geometry/util/hash.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -84,27 +83,6 @@ void WriteDepthNpz(const std::string& path, const cv::Mat& depth) {
             {"value", NpyArray::Float32({static_cast<int64_t>(value.size())},
                                         value.data())}},
            /*compress=*/false);
-}
-
-// Scenes for validation: the first round(fraction * scenes) in the order of a
-// seeded hash of their names (independent of the clip order), leaving at
-// least one scene for training when the fraction is below 1.
-std::set<std::string> ValScenes(const std::set<std::string>& scenes,
-                                const ExportOptions& options) {
-  std::vector<std::pair<std::string, std::string>> order;
-  for (const std::string& s : scenes) {
-    order.emplace_back(
-        StableHash64(std::to_string(options.split_seed) + "/" + s), s);
-  }
-  std::sort(order.begin(), order.end());
-  size_t n = static_cast<size_t>(
-      std::lround(options.val_fraction * static_cast<double>(scenes.size())));
-  if (options.val_fraction < 1 && n >= scenes.size() && n > 0)
-    n = scenes.size() - 1;
-  std::set<std::string> val;
-  for (size_t i = 0; i < n && i < order.size(); ++i)
-    val.insert(order[i].second);
-  return val;
 }
 
 class StreetCrafterExporter : public Exporter {

@@ -3,8 +3,10 @@
 #include "dataset/exporter.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "dataset/internal/exporters.h"
+#include "geometry/util/hash.h"
 #include "geometry/util/status.h"
 
 namespace geodrive {
@@ -18,6 +20,7 @@ constexpr FormatName kFormatNames[] = {
     {ExportFormat::kGeodriveUpstream, "geodrive-upstream"},
     {ExportFormat::kStreetCrafter, "streetcrafter"},
     {ExportFormat::kGen3c, "gen3c"},
+    {ExportFormat::kRdsHq, "rds-hq"},
 };
 
 }  // namespace
@@ -81,6 +84,8 @@ std::unique_ptr<Exporter> CreateExporter(ExportFormat format,
       return internal::CreateStreetCrafterExporter(options);
     case ExportFormat::kGen3c:
       return internal::CreateGen3cExporter(options);
+    case ExportFormat::kRdsHq:
+      return internal::CreateRdsHqExporter(options);
   }
   ThrowInputError("--export", "unknown format");
 }
@@ -104,6 +109,10 @@ std::string FrameCountText(const ExportRequirements& req) {
   return text + ")";
 }
 
+void Exporter::CheckClip(const std::string& clip_id, int num_frames) const {
+  CheckClipForExport(*this, clip_id, num_frames);
+}
+
 void CheckClipForExport(const Exporter& exporter,
                         const std::string& clip_id,
                         int num_frames) {
@@ -113,4 +122,25 @@ void CheckClipForExport(const Exporter& exporter,
                        FrameCountText(req), "; this clip has ", num_frames);
 }
 
+namespace internal {
+
+std::set<std::string> ValScenes(const std::set<std::string>& scenes,
+                                const ExportOptions& options) {
+  std::vector<std::pair<std::string, std::string>> order;
+  for (const std::string& s : scenes) {
+    order.emplace_back(
+        StableHash64(std::to_string(options.split_seed) + "/" + s), s);
+  }
+  std::sort(order.begin(), order.end());
+  size_t n = static_cast<size_t>(
+      std::lround(options.val_fraction * static_cast<double>(scenes.size())));
+  if (options.val_fraction < 1 && n >= scenes.size() && n > 0)
+    n = scenes.size() - 1;
+  std::set<std::string> val;
+  for (size_t i = 0; i < n && i < order.size(); ++i)
+    val.insert(order[i].second);
+  return val;
+}
+
+}  // namespace internal
 }  // namespace geodrive

@@ -37,10 +37,13 @@ enum class ExportFormat {
   // GEN3C's inference input (gen3c_dynamic.py): one folder per clip,
   // OUT/gen3c/<clip>/{rgb.mp4, depth.npz, mask.npz, camera.npz}.
   kGen3c,
+  // Cosmos-Drive-Dreams' RDS-HQ, the input of render_from_rds_hq.py: one
+  // webdataset tar per field and clip, OUT/rds_hq/<field>/<clip>.tar.
+  kRdsHq,
 };
 // Every format, in enum order.
 std::vector<ExportFormat> AllExportFormats();
-// "geodrive-upstream", "streetcrafter", "gen3c".
+// "geodrive-upstream", "streetcrafter", "gen3c", "rds-hq".
 std::string ToString(ExportFormat format);
 // Parses one format name; throws InputError listing the names otherwise.
 ExportFormat ParseExportFormat(const std::string& text);
@@ -71,6 +74,17 @@ struct ExportRequirements {
   // The renderer's frames before the resize to the pair's size
   // (ExportClip::native_condition; only with width = height = 0).
   bool native_condition = false;
+  // False when the exporter writes no frames or condition of its own (only
+  // cameras, poses, LiDAR, objects): width x height then sizes
+  // ExportClip::camera alone, nothing is decoded or rendered for it, and
+  // ExportClip::images and ::condition are null.
+  bool frames = true;
+  // LiDAR sweeps at frames 0, s, 2 s, ... (ExportClip::lidar); 0 = none.
+  // Needs a metric scene and a dataset with LiDAR.
+  int lidar_frame_step = 0;
+  // Every annotated object at every frame, all categories
+  // (ExportClip::objects). Needs a metric scene.
+  bool objects = false;
 };
 
 // Options shared by the exporters.
@@ -86,6 +100,38 @@ struct ExportOptions {
   bool Check() const;
 };
 
+// One LiDAR sweep of a clip (ExportClip::lidar).
+struct ExportSweep {
+  // The clip frame the sweep serves (the sweep nearest to the frame's time;
+  // a keyframe's own sweep).
+  int frame = 0;
+  int64_t timestamp_us = 0;
+  // Points in the sensor frame, metres: x, y, z, intensity (the dataset's
+  // scale; 0 when it has none), 4 floats a point, every return (the ego
+  // vehicle's own included).
+  std::vector<float> xyzi;
+  // The sensor's pose in the export's world (ExportClip::world_from_cam's).
+  Rigid3d world_from_sensor;
+  size_t size() const { return xyzi.size() / 4; }
+};
+
+// One annotated object at one frame (ExportClip::objects).
+struct ExportObject {
+  // Stable across the clip's frames (nuScenes: the instance token).
+  std::string track_id;
+  // The dataset's category in nuScenes names ("vehicle.car",
+  // "human.pedestrian.adult", ...; the Waymo adapter maps to them).
+  std::string category;
+  // Box centre pose in the export's world: x along the length (heading), y
+  // left along the width, z up.
+  Rigid3d world_from_box;
+  // Length, width, height (metres), along the box's x, y, z.
+  Eigen::Vector3d lwh = Eigen::Vector3d::Zero();
+  // Speed of the box centre (m/s): central difference over the track's
+  // neighbouring frames in the clip; 0 for a track seen in one frame.
+  double speed_mps = 0;
+};
+
 // What the builder has of one clip, at the exporter's size. The pointers are
 // non-null unless noted and outlive WriteClip.
 struct ExportClip {
@@ -94,9 +140,11 @@ struct ExportClip {
   std::string scene_name;
   // Index of the clip in the dataset's clip list (-1 = unknown).
   int clip_index = -1;
-  // Camera frames (RGB CV_8UC3) at the exporter's size.
+  // Camera frames (RGB CV_8UC3) at the exporter's size (null when
+  // ExportRequirements::frames is false).
   const std::vector<cv::Mat>* images = nullptr;
-  // Condition frames (RGB CV_8UC3, black where nothing was drawn), same size.
+  // Condition frames (RGB CV_8UC3, black where nothing was drawn), same size
+  // (null when ExportRequirements::frames is false).
   const std::vector<cv::Mat>* condition = nullptr;
   // With ExportRequirements::depth: the condition's z-depth per frame
   // (CV_32F, the scene's units, 0 = no point) and drawn mask (CV_8U, 255 = a
@@ -114,6 +162,18 @@ struct ExportClip {
   // Pose of every frame in the scene frame (camera 0 at frame 0), OpenCV
   // axes.
   std::vector<Rigid3d> world_from_cam;
+  // Capture time of every frame (the dataset's clock, microseconds).
+  std::vector<int64_t> timestamps_us;
+  // The dataset world's up (+z) in the export's world (unit).
+  Eigen::Vector3d world_up = -Eigen::Vector3d::UnitY();
+  // With ExportRequirements::lidar_frame_step: the sweeps at frames 0, s,
+  // 2 s, ... below the frame count, in frame order; null otherwise. The
+  // dataset's poses place them in the export's world (camera 0 at frame 0),
+  // as they place the boxes.
+  const std::vector<ExportSweep>* lidar = nullptr;
+  // With ExportRequirements::objects: per frame, every annotated object at
+  // the frame's time, all categories; null otherwise.
+  const std::vector<std::vector<ExportObject>>* objects = nullptr;
   // True when depth and poses are in metres.
   bool metric = true;
   // Vehicle boxes at the pair's size (null when none were collected).
@@ -125,6 +185,10 @@ class Exporter {
   virtual ~Exporter() = default;
   virtual ExportFormat Format() const = 0;
   virtual ExportRequirements Requirements() const = 0;
+  // Throws InputError "<clip_id>: <format> needs ..." when the exporter
+  // cannot serve a clip of this id and length; by default the frame counts
+  // of Requirements() (CheckClipForExport).
+  virtual void CheckClip(const std::string& clip_id, int num_frames) const;
   // Writes the clip's files under `pair_dir` (the pair folder being built)
   // and records them in meta->files. Throws InputError naming the file.
   virtual void WriteClip(const ExportClip& clip,
@@ -148,7 +212,8 @@ bool AcceptsFrameCount(const ExportRequirements& req, int num_frames);
 std::string FrameCountText(const ExportRequirements& req);
 
 // Throws InputError "<clip_id>: <format> needs N frames; this clip has M"
-// when a clip of `num_frames` frames breaks `exporter`'s requirements.
+// when a clip of `num_frames` frames breaks `exporter`'s requirements (its
+// frame counts; Exporter::CheckClip adds a format's own checks).
 void CheckClipForExport(const Exporter& exporter,
                         const std::string& clip_id,
                         int num_frames);

@@ -484,8 +484,78 @@ void WritePairFolder(const std::string& dir,
 
 void CheckClipForExports(const ClipContext& ctx, const DriveClip& clip) {
   if (!ctx.exporters) return;
-  for (const auto& e : *ctx.exporters)
-    CheckClipForExport(*e, clip.id, clip.num_frames());
+  for (const auto& e : *ctx.exporters) e->CheckClip(clip.id, clip.num_frames());
+}
+
+std::vector<ExportSweep> ClipSweeps(const DriveClip& clip,
+                                    int step,
+                                    const Rigid3d& scene_from_world,
+                                    const std::string& format) {
+  GEODRIVE_CHECK_INPUT(clip.lidar && !clip.lidar->Sweeps().empty(), clip.id,
+                       ": ", format, " needs LiDAR sweeps; the dataset (",
+                       clip.dataset, ") has none");
+  const LidarProvider& lidar = *clip.lidar;
+  std::vector<ExportSweep> sweeps;
+  for (int i = 0; i < clip.num_frames(); i += std::max(1, step)) {
+    const DriveFrame& f = clip.frames[i];
+    const std::optional<size_t> index =
+        f.keyframe_sweep ? f.keyframe_sweep : lidar.Nearest(f.timestamp_us);
+    GEODRIVE_CHECK_INPUT(index.has_value(), clip.id,
+                         ": no LiDAR sweep for "
+                         "frame ",
+                         i);
+    const LidarSweepInfo& info = lidar.Sweeps()[*index];
+    const PointCloud points = lidar.Load(*index);
+    ExportSweep s;
+    s.frame = i;
+    s.timestamp_us = info.timestamp_us;
+    s.world_from_sensor = scene_from_world * info.WorldFromSensor();
+    s.xyzi.reserve(4 * points.size());
+    for (size_t k = 0; k < points.size(); ++k) {
+      const Eigen::Vector3f& p = points.positions[k];
+      s.xyzi.insert(s.xyzi.end(),
+                    {p.x(), p.y(), p.z(),
+                     points.HasIntensity() ? points.intensity[k] : 0.0f});
+    }
+    sweeps.push_back(std::move(s));
+  }
+  return sweeps;
+}
+
+std::vector<std::vector<ExportObject>> ClipObjects(
+    const DriveClip& clip, const Rigid3d& scene_from_world) {
+  const int n = clip.num_frames();
+  // Each track's (frame, centre in the world) in frame order, for speeds.
+  std::map<std::string, std::vector<std::pair<int, Eigen::Vector3d>>> tracks;
+  for (int i = 0; i < n; ++i) {
+    for (const ClipBox& b : clip.frames[i].boxes)
+      tracks[b.instance_id].emplace_back(i, b.box.center);
+  }
+  const auto speed = [&](const std::string& id, int frame) {
+    const auto& t = tracks.at(id);
+    if (t.size() < 2) return 0.0;
+    size_t k = 0;
+    while (k < t.size() && t[k].first != frame) ++k;
+    const size_t a = k == 0 ? 0 : k - 1;
+    const size_t b = std::min(k + 1, t.size() - 1);
+    const double dt =
+        1e-6 * static_cast<double>(clip.frames[t[b].first].timestamp_us -
+                                   clip.frames[t[a].first].timestamp_us);
+    return dt > 0 ? (t[b].second - t[a].second).norm() / dt : 0.0;
+  };
+  std::vector<std::vector<ExportObject>> objects(n);
+  for (int i = 0; i < n; ++i) {
+    for (const ClipBox& b : clip.frames[i].boxes) {
+      ExportObject o;
+      o.track_id = b.instance_id;
+      o.category = b.category;
+      o.world_from_box = scene_from_world * b.box.WorldFromBox();
+      o.lwh = Eigen::Vector3d(b.box.size.y(), b.box.size.x(), b.box.size.z());
+      o.speed_mps = speed(b.instance_id, i);
+      objects[i].push_back(std::move(o));
+    }
+  }
+  return objects;
 }
 
 namespace {
@@ -505,7 +575,7 @@ RenderKeep ExportRenderKeep(const ClipContext& ctx,
   if (!ctx.exporters) return keep;
   for (const auto& e : *ctx.exporters) {
     const ExportRequirements req = e->Requirements();
-    if (!AtPairSize(req, opt)) continue;
+    if (!req.frames || !AtPairSize(req, opt)) continue;
     keep.native_frames |= req.native_condition;
     keep.depth |= req.depth;
   }
@@ -522,6 +592,10 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
   std::vector<std::unique_ptr<ClipExport>> exports;
   if (!ctx.exporters) return exports;
   const BuildDatasetOptions& opt = *ctx.options;
+  // LiDAR (by frame step) and objects, read once for the exporters that ask.
+  const Rigid3d scene_from_world = clip.frames.front().world_from_cam.Inverse();
+  std::map<int, std::shared_ptr<const std::vector<ExportSweep>>> sweeps;
+  std::shared_ptr<const std::vector<std::vector<ExportObject>>> objects;
   for (const auto& e : *ctx.exporters) {
     const ExportRequirements req = e->Requirements();
     auto x = std::make_unique<ClipExport>();
@@ -530,7 +604,40 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
     const ConditionRender* c = &cond;
     const BoxSequences* b = &boxes;
     BuildDatasetOptions eopt = opt;
-    if (!AtPairSize(req, opt)) {
+    if (req.lidar_frame_step > 0 || req.objects) {
+      // The dataset's LiDAR and boxes are in metres: they place only in a
+      // metric scene (camera 0's frame, as the vehicle boxes).
+      GEODRIVE_CHECK_INPUT(scene.metric(), clip.id, ": ", ToString(e->Format()),
+                           " needs metric geometry (LiDAR and boxes in "
+                           "metres); this scene is in ",
+                           scene.units, " units");
+    }
+    if (req.lidar_frame_step > 0) {
+      auto& s = sweeps[req.lidar_frame_step];
+      if (!s) {
+        s = std::make_shared<const std::vector<ExportSweep>>(
+            ClipSweeps(clip, req.lidar_frame_step, scene_from_world,
+                       ToString(e->Format())));
+      }
+      x->lidar = s;
+    }
+    if (req.objects) {
+      if (!objects) {
+        objects =
+            std::make_shared<const std::vector<std::vector<ExportObject>>>(
+                ClipObjects(clip, scene_from_world));
+      }
+      x->objects = objects;
+    }
+    if (!req.frames) {
+      // Cameras, poses, LiDAR and objects only: nothing to decode or render.
+      eopt.width = req.width > 0 ? req.width : opt.width;
+      eopt.height = req.height > 0 ? req.height : opt.height;
+      eopt.resize_mode =
+          req.width > 0 ? ResizeMode::kCenterCrop : opt.resize_mode;
+      f = nullptr;
+      c = nullptr;
+    } else if (!AtPairSize(req, opt)) {
       // The trainer's size: the frames decoded and the condition rendered at
       // it, centre-cropped to its aspect (never a resize of our frames).
       eopt.width = req.width;
@@ -553,9 +660,9 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
       const auto it = ctx.clip_index->find(clip.id);
       if (it != ctx.clip_index->end()) ec.clip_index = it->second;
     }
-    ec.images = &f->gt;
-    ec.condition = &c->frames;
-    if (req.depth) {
+    if (f) ec.images = &f->gt;
+    if (c) ec.condition = &c->frames;
+    if (req.depth && c) {
       ec.depth = &c->depth;
       ec.drawn = &c->drawn;
     }
@@ -564,8 +671,13 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
     ec.first_frame_path = frames.first_frame_path;
     ec.camera = scene.CameraAt(eopt.width, eopt.height, eopt.resize_mode);
     ec.world_from_cam = scene.trajectory.world_from_cam;
+    for (const DriveFrame& df : clip.frames)
+      ec.timestamps_us.push_back(df.timestamp_us);
+    ec.world_up = scene_from_world.rotation * Eigen::Vector3d::UnitZ();
     ec.metric = scene.metric();
     ec.boxes = b;
+    ec.lidar = x->lidar.get();
+    ec.objects = x->objects.get();
     exports.push_back(std::move(x));
   }
   return exports;

@@ -3,6 +3,8 @@
 // CreateExporter (internal to geodrive_dataset).
 
 #include <memory>
+#include <set>
+#include <string>
 
 #include "dataset/exporter.h"
 
@@ -14,6 +16,13 @@ std::unique_ptr<Exporter> CreateGeodriveUpstreamExporter(
 std::unique_ptr<Exporter> CreateStreetCrafterExporter(
     const ExportOptions& options);
 std::unique_ptr<Exporter> CreateGen3cExporter(const ExportOptions& options);
+std::unique_ptr<Exporter> CreateRdsHqExporter(const ExportOptions& options);
+
+// Scenes for validation: the first round(fraction * scenes) in the order of a
+// seeded hash of their names (independent of the clip order), leaving at
+// least one scene for training when the fraction is below 1.
+std::set<std::string> ValScenes(const std::set<std::string>& scenes,
+                                const ExportOptions& options);
 
 }  // namespace internal
 }  // namespace geodrive

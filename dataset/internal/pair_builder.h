@@ -201,6 +201,18 @@ ConditionRender RenderConditionView(const ViewToRender& view,
 PairMeta MakePairMeta(const DriveClip& clip,
                       const ConditionScene& scene,
                       const BuildDatasetOptions& options);
+// The clip's LiDAR sweeps at frames 0, step, 2 step, ... (ExportSweep: the
+// keyframe's own sweep, else the one nearest the frame's time), posed in the
+// frame `scene_from_world` says. Throws InputError naming `format` when the
+// clip has no LiDAR.
+std::vector<ExportSweep> ClipSweeps(const DriveClip& clip,
+                                    int step,
+                                    const Rigid3d& scene_from_world,
+                                    const std::string& format);
+// Every annotated object of every frame (all categories, ExportObject), in
+// the frame `scene_from_world` says, with its centre's speed.
+std::vector<std::vector<ExportObject>> ClipObjects(
+    const DriveClip& clip, const Rigid3d& scene_from_world);
 // One exporter's view of a clip (ExportClip) with the frames and renders it
 // points into: the pair's own, or a second render at the exporter's size.
 struct ClipExport {
@@ -208,6 +220,9 @@ struct ClipExport {
   ClipFrames frames;
   ConditionRender cond;
   BoxSequences boxes;
+  // LiDAR sweeps and objects, shared by the exporters that asked for them.
+  std::shared_ptr<const std::vector<ExportSweep>> lidar;
+  std::shared_ptr<const std::vector<std::vector<ExportObject>>> objects;
   // Points into the members above or into the pair's frames and render: not
   // copyable or movable once made.
   ExportClip clip;
