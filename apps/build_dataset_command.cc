@@ -212,7 +212,8 @@ void AddPairOptions(CLI::App& app, Args& a) {
   app.add_option("--stride", o.clip_stride,
                  "CAM_FRONT frames between clip starts")
       ->capture_default_str();
-  app.add_option("--clip-frames", o.clip_frames, "Frames per clip (>= 2)")
+  app.add_option("--clip-frames", o.clip_frames,
+                 "Frames per clip (>= 1; one frame: a single-image pair)")
       ->capture_default_str();
   app.add_option("--frames", o.frames,
                  "Which CAM_FRONT frames make clips: all (keyframes and "
@@ -275,7 +276,10 @@ void AddPairOptions(CLI::App& app, Args& a) {
                  "(Cosmos-Drive-Dreams' render_from_rds_hq.py input: "
                  "OUT/rds_hq/<field>/<clip>.tar webdataset tars of poses, "
                  "intrinsics at 1280x720, LiDAR and boxes; --clip-frames 121 "
-                 "or more, taken as 30 Hz); none")
+                 "or more, taken as 30 Hz), drivestudio (drivestudio's "
+                 "nuScenes layout: OUT/drivestudio/%03d/ per clip, CAM_FRONT "
+                 "as camera 0: images at 1600x900, LiDAR, sky and dynamic "
+                 "masks, instances); none")
       ->capture_default_str();
   app.add_option("--val-fraction", o.export_options.val_fraction,
                  "Exports with train/val lists (streetcrafter, rds-hq): "

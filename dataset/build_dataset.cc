@@ -141,8 +141,9 @@ void BuildDatasetOptions::Check() const {
       "build-dataset: output size must be within 16..16384");
   GEODRIVE_CHECK_INPUT(fps > 0 && fps <= 240,
                        "build-dataset: --fps must be in (0, 240]");
-  GEODRIVE_CHECK_INPUT(clip_frames >= 2 && clip_stride >= 1,
-                       "build-dataset: bad clip options");
+  GEODRIVE_CHECK_INPUT(clip_frames >= 1 && clip_stride >= 1,
+                       "build-dataset: --clip-frames and --stride must be at "
+                       "least 1");
   GEODRIVE_CHECK_INPUT(min_confidence >= 0 && min_confidence <= 1,
                        "build-dataset: --min-confidence must be in [0, 1]");
   GEODRIVE_CHECK_INPUT(

@@ -54,7 +54,7 @@ struct DriveDatasetOptions {
   // Source frames between consecutive clip starts (6 = one keyframe interval
   // of nuScenes' 12 Hz camera; Waymo frames are 10 Hz).
   int clip_stride = 6;
-  // True if the options are usable (root set, clip_frames >= 2, stride >= 1).
+  // True if the options are usable (root set, clip_frames >= 1, stride >= 1).
   bool Check() const;
 };
 

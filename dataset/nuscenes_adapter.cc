@@ -370,14 +370,14 @@ std::vector<std::string> ParseCameraList(const std::string& text,
 
 bool DriveDatasetOptions::Check() const {
   return !root.empty() && !version.empty() && !channel.empty() &&
-         clip_frames >= 2 && clip_stride >= 1;
+         clip_frames >= 1 && clip_stride >= 1;
 }
 
 std::unique_ptr<DriveDataset> OpenDriveDataset(
     const DriveDatasetOptions& options) {
   GEODRIVE_CHECK_INPUT(options.Check(),
                        "dataset options: need a root, a version, a channel, "
-                       "clip_frames >= 2 and clip_stride >= 1");
+                       "clip_frames >= 1 and clip_stride >= 1");
   switch (options.format) {
     case DatasetFormat::kNuscenes:
       return std::make_unique<NuscenesDriveDataset>(options);

@@ -238,11 +238,12 @@ TEST(WaymoAdapter, RealFrameEqualsTheReader) {
   ASSERT_EQ(frames.size(), 1u);
   const WaymoFrame& frame = frames[0];
   DriveDatasetOptions options = WaymoOptions(path);
-  options.clip_frames = 2;  // Check() needs 2; one frame gives no clip
+  options.clip_frames = 2;  // one frame gives no two-frame clip
   EXPECT_TRUE(OpenDriveDataset(options)->ClipIds().empty());
-  // One-frame clips through the selection directly are not allowed by
-  // Check(), so the frame is read as a rig of two-frame clips of a segment
-  // holding the real record twice (timestamps apart).
+  // The frame is read as a rig of two-frame clips of a segment holding the
+  // real record twice (timestamps apart), so that the clip's second frame
+  // is checked too (WaymoPairs.RealFrameBuildsAOneFramePair builds the file
+  // as it is, a one-frame clip).
   const std::string dir = test::MakeTempDir("waymo_adapter_real");
   wod::Frame proto;
   ASSERT_TRUE(proto.ParseFromString(ReadTfRecords(path)[0]));
