@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <future>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -784,6 +785,36 @@ std::vector<std::string> PairIds(const std::vector<std::string>& clips,
 
 namespace internal {
 
+NovelViewScenes::NovelViewScenes(std::map<std::string, int> pairs_per_clip)
+    : remaining_(std::move(pairs_per_clip)) {}
+
+ConditionScene NovelViewScenes::Get(
+    const std::string& clip_id, const std::function<ConditionScene()>& build) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  std::promise<std::shared_ptr<const ConditionScene>> promise;
+  Shared shared;
+  const auto it = scenes_.find(clip_id);
+  const bool first = it == scenes_.end();
+  if (first) {
+    shared = promise.get_future().share();
+    scenes_[clip_id] = shared;
+  } else {
+    shared = it->second;
+  }
+  lock.unlock();
+  if (first) {
+    try {
+      promise.set_value(std::make_shared<const ConditionScene>(build()));
+    } catch (...) {
+      promise.set_exception(std::current_exception());
+    }
+  }
+  lock.lock();
+  if (--remaining_[clip_id] <= 0) scenes_.erase(clip_id);
+  lock.unlock();
+  return *shared.get();  // a copy: each pair moves its own trajectory
+}
+
 const PairNovelView* NovelViewOf(const ClipContext& ctx,
                                  const std::string& pair_id) {
   if (ctx.novel_views == nullptr) return nullptr;
@@ -891,6 +922,13 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   WriteFileAtomic(RunRecordPath(opt.out), RunRecordJson(run));
   const std::vector<const std::string*> pending =
       PendingClips(mine, opt, &summary);
+  std::map<std::string, int> pairs_per_clip;
+  for (const std::string* id : pending) {
+    const auto it = novel_views.find(*id);
+    if (it != novel_views.end()) ++pairs_per_clip[it->second.source_clip_id];
+  }
+  internal::NovelViewScenes novel_scenes(std::move(pairs_per_clip));
+  ctx.novel_scenes = &novel_scenes;
   JsonlAppender manifest(opt.out + "/manifest" + suffix + ".jsonl");
   JsonlAppender failures(opt.out + "/failures" + suffix + ".jsonl");
   ProgressReporter progress("build-dataset", pending.size(), 10.0, opt.quiet);

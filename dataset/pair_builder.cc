@@ -706,8 +706,13 @@ PairMeta BuildPair(const ClipContext& ctx,
       "gt", [&] { return ReadClipFrames(clip, opt, full_size_images); });
   const std::string path =
       ctx.folders ? ctx.folders->Find(source_id).value_or("") : std::string();
-  ConditionScene scene = timer.Run(
-      "geometry", [&] { return BuildClipScene(clip, frames.full, path, opt); });
+  ConditionScene scene = timer.Run("geometry", [&] {
+    const auto build = [&] {
+      return BuildClipScene(clip, frames.full, path, opt);
+    };
+    return novel && ctx.novel_scenes ? ctx.novel_scenes->Get(source_id, build)
+                                     : build();
+  });
   if (novel) timer.Run("geometry", [&] { ShiftScene(clip, *novel, &scene); });
   for (const auto& [step, s] : scene.seconds) {  // e.g. the LiDAR scale fit
     (*stage_seconds)[step] += s;

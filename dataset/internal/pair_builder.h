@@ -7,8 +7,11 @@
 #include <time.h>
 
 #include <chrono>
+#include <functional>
+#include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,6 +34,26 @@ struct StageError : std::runtime_error {
   std::string stage;
 };
 
+// Novel-view pairs share their source clip's scene: built once by the first
+// pair that asks (the others of the clip wait for it), then copied by each,
+// and released after the clip's last pair (a pair that fails before asking
+// leaves it held until the run ends). The same scene as a build per pair.
+class NovelViewScenes {
+ public:
+  // How many pairs of this run ask for each clip's scene.
+  explicit NovelViewScenes(std::map<std::string, int> pairs_per_clip);
+  // The scene of `clip_id`: `build()` run by the first caller; its
+  // exception is every caller's.
+  ConditionScene Get(const std::string& clip_id,
+                     const std::function<ConditionScene()>& build);
+
+ private:
+  using Shared = std::shared_future<std::shared_ptr<const ConditionScene>>;
+  std::mutex mutex_;
+  std::map<std::string, int> remaining_;
+  std::map<std::string, Shared> scenes_;
+};
+
 // What every clip of a run shares.
 struct ClipContext {
   const DriveDataset* dataset = nullptr;
@@ -44,6 +67,8 @@ struct ClipContext {
   // Novel-view pairs (BuildDatasetOptions::lateral_offsets_m): pair id ->
   // source clip and offset; null or without the id = the pair of that clip.
   const std::map<std::string, PairNovelView>* novel_views = nullptr;
+  // Their scenes, shared by the pairs of a clip; null = one per pair.
+  NovelViewScenes* novel_scenes = nullptr;
 };
 
 // The dataset's options for a build: its clips and, with --cameras, its rig
