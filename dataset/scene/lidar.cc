@@ -102,8 +102,11 @@ class LidarSceneSource : public SceneSource {
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {
     const DriveClip& clip = *in.clip;
-    GEODRIVE_CHECK_INPUT(clip.lidar != nullptr, clip.dataset,
-                         ": dataset has no LIDAR_TOP: use --geometry monst3r");
+    GEODRIVE_CHECK_INPUT(
+        clip.lidar != nullptr, clip.dataset, ": ", clip.id,
+        ": no LiDAR (nuScenes LIDAR_TOP sweeps, Waymo range images): use a "
+        "reconstruction (--geometry monst3r, vggt, da3, cut3r, megasam, moge "
+        "or npz)");
     GEODRIVE_CHECK_INPUT(!clip.frames.empty(), clip.id, ": clip has no frames");
     std::vector<cv::Mat> read;
     const std::vector<cv::Mat>* images = in.clip_images;

@@ -90,8 +90,11 @@ class LidarDenseSceneSource : public SceneSource {
   ConditionScene Build(const SceneInputs& in,
                        const SceneSourceOptions& options) const override {
     const DriveClip& clip = *in.clip;
-    GEODRIVE_CHECK_INPUT(clip.lidar != nullptr, clip.dataset,
-                         ": dataset has no LIDAR_TOP: use --geometry monst3r");
+    GEODRIVE_CHECK_INPUT(
+        clip.lidar != nullptr, clip.dataset, ": ", clip.id,
+        ": no LiDAR (nuScenes LIDAR_TOP sweeps, Waymo range images): use a "
+        "reconstruction (--geometry monst3r, vggt, da3, cut3r, megasam, moge "
+        "or npz)");
     GEODRIVE_CHECK_INPUT(!clip.frames.empty(), clip.id, ": clip has no frames");
     const DriveFrame& frame0 = clip.frames.front();
     const cv::Mat image = in.clip_images && !in.clip_images->empty()

@@ -247,6 +247,20 @@ TEST(WaymoPairs, RealFrameBuildsAOneFramePair) {
   b.quiet = true;
   const BuildDatasetSummary summary = BuildDataset(b);
   ASSERT_EQ(summary.built, 1) << test::ReadFile(b.out + "/failures.jsonl");
+  // The default geometry needs the LiDAR the file does not have: the clip
+  // fails with one line naming the clip and the way out.
+  BuildDatasetOptions no_lidar = b;
+  no_lidar.geometry = "lidar";
+  no_lidar.monst3r_root.clear();
+  no_lidar.out = dir + "/out_lidar";
+  EXPECT_EQ(BuildDataset(no_lidar).failed, 1);
+  const std::string failure = test::ReadFile(no_lidar.out + "/failures.jsonl");
+  EXPECT_NE(failure.find(clip_id + ": no LiDAR (nuScenes LIDAR_TOP sweeps, "
+                                   "Waymo range images): use a "
+                                   "reconstruction"),
+            std::string::npos)
+      << failure;
+
   const std::string pair = b.out + "/pairs/" + clip_id;
   const PairMeta meta = ReadPairMeta(pair);
   EXPECT_EQ(meta.frames.size(), 1u);
