@@ -58,11 +58,11 @@ std::vector<double> ParseOffsets(const std::string& text) {
     const double v = std::strtod(item.c_str(), &end);
     GEODRIVE_CHECK_INPUT(*end == '\0' && std::isfinite(v), "--offsets: '", item,
                          "' is not a number of metres (a comma list, left "
-                         "positive, e.g. --offsets=-3,3)");
+                         "positive, e.g. --offsets -3,3)");
     out.push_back(v);
   }
   GEODRIVE_CHECK_INPUT(!out.empty(), "--offsets: no offset in '", text,
-                       "' (a comma list of metres, e.g. --offsets=-3,3)");
+                       "' (a comma list of metres, e.g. --offsets -3,3)");
   return out;
 }
 
@@ -201,8 +201,8 @@ CommandRunner Setup(CLI::App& app) {
                  "names), or all")
       ->capture_default_str();
   app.add_option("--offsets", a->offsets,
-                 "Comma list of lateral offsets in metres, left positive "
-                 "(write --offsets=-3,3 when the list starts with a minus)")
+                 "Comma list of lateral offsets in metres, left positive, "
+                 "e.g. -3,3 (3 m right and 3 m left)")
       ->capture_default_str();
   app.add_option("--frames", o.clip_frames,
                  "Frames per pair, from each segment's first frame")

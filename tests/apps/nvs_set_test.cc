@@ -117,7 +117,7 @@ void CheckShiftedCamera(const PairMeta& meta,
 TEST(NvsSet, PairsPerSegmentAndOffsetAlongTheShiftedTrajectory) {
   const std::string out = test::MakeTempDir("nvs_set") + "/nvs";
   int rc = 0;
-  std::string log = NvsSet("--offsets=-3,3 --out " + out + kPairArgs, &rc);
+  std::string log = NvsSet("--offsets -3,3 --out " + out + kPairArgs, &rc);
   ASSERT_EQ(rc, 0) << log;
   EXPECT_NE(log.find("geodrive-diffusion generate --manifest " + out +
                      "/manifest.jsonl"),
