@@ -305,6 +305,65 @@ TEST(NvsSet, RealNuscenesScene) {
   EXPECT_LT(max_px_err, 0.01);
 }
 
+// nuScenes too, and batch isolation: on a synthetic nuScenes root whose
+// second scene's front images are broken, that scene's two pairs are
+// recorded as failed and the first scene's pairs are built along the shifted
+// ego poses (exit 3).
+TEST(NvsSet, NuscenesAndABrokenSegmentRecorded) {
+  const std::string dir = test::MakeTempDir("nvs_set_nuscenes");
+  const std::string root = dir + "/nu";
+  std::string log;
+  ASSERT_EQ(test::RunCommand(test::GeodriveBinary() + " synth --out " + root +
+                                 " --scenes 2 --seed 7 --size 90x160 "
+                                 "--duration 1.5 --lidar-azimuth-steps 180",
+                             &log),
+            0)
+      << log;
+  int broken = 0;
+  for (const char* folder : {"/samples/CAM_FRONT", "/sweeps/CAM_FRONT"}) {
+    for (const auto& e : fs::directory_iterator(root + folder)) {
+      if (e.path().filename().string().rfind("synth-7-0001__", 0) != 0)
+        continue;
+      test::WriteFile(e.path().string(), "not a JPEG");
+      ++broken;
+    }
+  }
+  ASSERT_GT(broken, 9);
+  const std::string out = dir + "/nvs";
+  ASSERT_EQ(
+      test::RunCommand(test::GeodriveBinary() + " nvs-set --dataroot " + root +
+                           " --offsets -3,3 --out " + out + kPairArgs,
+                       &log),
+      3)
+      << log;
+  EXPECT_NE(log.find("pairs built 2"), std::string::npos) << log;
+  EXPECT_NE(log.find("failed 2"), std::string::npos) << log;
+  const std::vector<FailureEntry> failures =
+      ReadFailures(out + "/failures.jsonl");
+  ASSERT_EQ(failures.size(), 2u);
+  EXPECT_EQ(failures[0].clip_id, "scene-0002_0000_shift_left_3m");
+  EXPECT_EQ(failures[1].clip_id, "scene-0002_0000_shift_right_3m");
+  const std::vector<ManifestEntry> manifest =
+      ReadManifest(out + "/manifest.jsonl");
+  ASSERT_EQ(manifest.size(), 2u);
+  DriveDatasetOptions o;
+  o.root = root;
+  o.clip_frames = 9;
+  o.clip_stride = 1 << 30;
+  const std::unique_ptr<DriveDataset> dataset = OpenDriveDataset(o);
+  double max_pose_err = 0, max_px_err = 0;
+  for (const ManifestEntry& e : manifest) {
+    EXPECT_EQ(e.clip_id.rfind("scene-0001_0000_shift_", 0), 0u) << e.clip_id;
+    const PairMeta meta = ReadPairMeta(out + "/" + e.pair_dir);
+    ASSERT_TRUE(meta.novel_view.has_value()) << e.clip_id;
+    CheckShiftedCamera(meta, dataset->LoadClip(meta.novel_view->source_clip_id),
+                       meta.novel_view->lateral_offset_m, &max_pose_err,
+                       &max_px_err);
+  }
+  EXPECT_LT(max_pose_err, 1e-9);
+  EXPECT_LT(max_px_err, 0.01);
+}
+
 TEST(NvsSet, NamedSegmentsAndOffsets) {
   const std::string out = test::MakeTempDir("nvs_set_named") + "/nvs";
   const std::unique_ptr<DriveDataset> dataset = Dataset();
