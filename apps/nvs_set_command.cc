@@ -116,7 +116,7 @@ std::vector<std::string> SelectSegments(const NvsArgs& a,
   return clips;
 }
 
-int Run(NvsArgs& a) {
+int RunNvsSet(NvsArgs& a) {
   BuildDatasetOptions& o = a.options;
   GEODRIVE_CHECK_INPUT(!o.dataroot.empty() && !o.out.empty(),
                        "nvs-set: --dataroot and --out are required");
@@ -158,7 +158,7 @@ int Run(NvsArgs& a) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
+CommandRunner SetupNvsSet(CLI::App& app) {
   auto a = std::make_shared<NvsArgs>();
   BuildDatasetOptions& o = a->options;
   app.footer(
@@ -242,7 +242,7 @@ CommandRunner Setup(CLI::App& app) {
   app.add_flag("--lossless-frames", o.lossless_frames,
                "Also write gt_frames/ and cond_frames/ PNG sequences");
   app.add_flag("--quiet", o.quiet, "No progress lines");
-  return [a] { return Run(*a); };
+  return [a] { return RunNvsSet(*a); };
 }
 
 }  // namespace
@@ -251,6 +251,6 @@ GEODRIVE_REGISTER_COMMAND(nvs_set,
                           "nvs-set",
                           "The paper's novel-view evaluation set: per segment "
                           "the front camera's trajectory shifted sideways",
-                          Setup);
+                          SetupNvsSet);
 
 }  // namespace geodrive
