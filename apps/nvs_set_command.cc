@@ -144,8 +144,9 @@ int RunNvsSet(NvsArgs& a) {
             << "pairs: " << o.out << "/pairs/  manifest: " << o.out
             << "/manifest.jsonl  report: " << o.out << "/report.html\n"
             << "generate: geodrive-diffusion generate --manifest " << o.out
-            << "/manifest.jsonl --out-dir PRED --weights BACKBONE "
-               "--branch-weights ENCODER --vae-weights VAE\n"
+            << "/manifest.jsonl --out-dir PRED --config cogvideox-5b-i2v "
+               "--weights BACKBONE --branch-weights ENCODER --vae-weights "
+               "VAE\n"
             << "evaluate: geodrive eval --pred PRED --gt " << o.out
             << "/pairs --metrics fid,fvd --fid-model pt_inception.pt "
                "--fvd-model i3d_torchscript.pt --out PRED_eval/report.json\n";
