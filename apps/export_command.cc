@@ -31,7 +31,7 @@ CommandRunner SetupExport(CLI::App& app) {
       ->required();
   app.add_option("--format", a->formats,
                  "FORMAT[,FORMAT...]: geodrive-upstream, streetcrafter, "
-                 "gen3c, rds-hq")
+                 "gen3c, rds-hq, drivestudio")
       ->required();
   app.add_option("--val-fraction", a->options.val_fraction,
                  "Formats with train/val lists (streetcrafter, rds-hq): "
@@ -57,7 +57,7 @@ GEODRIVE_REGISTER_COMMAND(
     export_pairs,
     "export",
     "Write other trainers' files (streetcrafter, gen3c, rds-hq, "
-    "geodrive-upstream) for the pairs of a build-dataset output",
+    "drivestudio, geodrive-upstream) for the pairs of a build-dataset output",
     SetupExport);
 
 }  // namespace geodrive

@@ -21,6 +21,7 @@ constexpr FormatName kFormatNames[] = {
     {ExportFormat::kStreetCrafter, "streetcrafter"},
     {ExportFormat::kGen3c, "gen3c"},
     {ExportFormat::kRdsHq, "rds-hq"},
+    {ExportFormat::kDrivestudio, "drivestudio"},
 };
 
 }  // namespace
@@ -86,6 +87,8 @@ std::unique_ptr<Exporter> CreateExporter(ExportFormat format,
       return internal::CreateGen3cExporter(options);
     case ExportFormat::kRdsHq:
       return internal::CreateRdsHqExporter(options);
+    case ExportFormat::kDrivestudio:
+      return internal::CreateDrivestudioExporter(options);
   }
   ThrowInputError("--export", "unknown format");
 }

@@ -40,10 +40,14 @@ enum class ExportFormat {
   // Cosmos-Drive-Dreams' RDS-HQ, the input of render_from_rds_hq.py: one
   // webdataset tar per field and clip, OUT/rds_hq/<field>/<clip>.tar.
   kRdsHq,
+  // drivestudio's nuScenes layout (tools/train.py): one scene folder per
+  // clip, OUT/drivestudio/%03d/.
+  kDrivestudio,
 };
 // Every format, in enum order.
 std::vector<ExportFormat> AllExportFormats();
-// "geodrive-upstream", "streetcrafter", "gen3c", "rds-hq".
+// "geodrive-upstream", "streetcrafter", "gen3c", "rds-hq",
+// "drivestudio".
 std::string ToString(ExportFormat format);
 // Parses one format name; throws InputError listing the names otherwise.
 ExportFormat ParseExportFormat(const std::string& text);

@@ -17,6 +17,8 @@ std::unique_ptr<Exporter> CreateStreetCrafterExporter(
     const ExportOptions& options);
 std::unique_ptr<Exporter> CreateGen3cExporter(const ExportOptions& options);
 std::unique_ptr<Exporter> CreateRdsHqExporter(const ExportOptions& options);
+std::unique_ptr<Exporter> CreateDrivestudioExporter(
+    const ExportOptions& options);
 
 // Scenes for validation: the first round(fraction * scenes) in the order of a
 // seeded hash of their names (independent of the clip order), leaving at
