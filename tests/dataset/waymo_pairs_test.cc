@@ -40,31 +40,33 @@ SyntheticWaymoOptions SegmentOptions() {
   return o;
 }
 
-// One segment and its pair, built once per process.
+// One segment and its pair, built once for all the test processes.
 struct Built {
   std::string out, pair_dir;
   PairMeta meta;
 };
 const Built& BuiltPair() {
   static const Built built = [] {
-    const std::string dir = test::MakeTempDir("waymo_pairs");
-    WriteSyntheticWaymo(SegmentOptions(), dir + "/segments");
-    BuildDatasetOptions b;
-    b.dataset = DatasetFormat::kWaymo;
-    b.dataroot = dir + "/segments";
-    b.out = dir + "/out";
-    b.geometry = "lidar";
-    b.width = 480;
-    b.height = 320;
-    b.threads = 1;
-    const BuildDatasetSummary s = BuildDataset(b);
-    EXPECT_EQ(s.built, 1);
+    const std::string dir =
+        test::SharedFixtureDir("waymo_pairs", [](const std::string& root) {
+          WriteSyntheticWaymo(SegmentOptions(), root + "/segments");
+          BuildDatasetOptions b;
+          b.dataset = DatasetFormat::kWaymo;
+          b.dataroot = root + "/segments";
+          b.out = root + "/out";
+          b.geometry = "lidar";
+          b.width = 480;
+          b.height = 320;
+          b.threads = 1;
+          const BuildDatasetSummary s = BuildDataset(b);
+          EXPECT_EQ(s.built, 1);
+        });
     Built out;
-    out.out = b.out;
+    out.out = dir + "/out";
     const std::vector<ManifestEntry> entries =
-        ReadManifest(b.out + "/manifest.jsonl");
+        ReadManifest(out.out + "/manifest.jsonl");
     EXPECT_EQ(entries.size(), 1u);
-    out.pair_dir = b.out + "/" + entries.at(0).pair_dir;
+    out.pair_dir = out.out + "/" + entries.at(0).pair_dir;
     out.meta = ReadPairMeta(out.pair_dir);
     return out;
   }();
