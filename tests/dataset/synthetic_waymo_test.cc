@@ -33,17 +33,21 @@ SyntheticWaymoOptions SmallOptions() {
   return o;
 }
 
-// The small segment, written once per process.
+// The small segment, written once for all the test processes.
 struct Segment {
   std::string path;
   std::vector<WaymoFrame> frames;
 };
 const Segment& SmallSegment() {
   static const Segment segment = [] {
-    const std::string dir = test::MakeTempDir("synthetic_waymo");
-    const SyntheticWaymoSummary s = WriteSyntheticWaymo(SmallOptions(), dir);
+    const std::string dir =
+        test::SharedFixtureDir("synthetic_waymo", [](const std::string& d) {
+          const SyntheticWaymoSummary s =
+              WriteSyntheticWaymo(SmallOptions(), d);
+          test::WriteFile(d + "/segment_path.txt", s.files.at(0));
+        });
     Segment out;
-    out.path = s.files.at(0);
+    out.path = test::ReadFile(dir + "/segment_path.txt");
     out.frames = ReadWaymoFrames(out.path);
     return out;
   }();
