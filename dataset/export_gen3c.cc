@@ -141,18 +141,9 @@ class Gen3cExporter : public Exporter {
 
 int Gen3cExporter::Finish(const std::string& out) const {
   const std::string root = out + "/" + kFolder;
-  std::vector<std::string> clips;
-  if (fs::is_directory(out + "/pairs")) {
-    for (const auto& e : fs::directory_iterator(out + "/pairs")) {
-      const std::string name = e.path().filename().string();
-      if (e.is_directory() && name.rfind(".", 0) != 0 &&
-          fs::exists(e.path() / "meta.json") &&
-          fs::is_directory(e.path() / kFolder))
-        clips.push_back(name);
-    }
-  }
+  const std::vector<std::string> clips =
+      internal::PairsWithExport(out, kFolder);
   if (clips.empty() && !fs::exists(root)) return 0;
-  std::sort(clips.begin(), clips.end());
   fs::create_directories(root);
   std::string batch;
   for (const std::string& c : clips) {

@@ -57,40 +57,32 @@ int WriteUpstreamIndex(const std::string& out) {
   namespace fs = std::filesystem;
   const std::string root = out + "/geodrive_upstream";
   std::vector<std::pair<int, std::string>> samples;  // scene_idx, jsonl line
-  if (fs::is_directory(out + "/pairs")) {
-    for (const auto& e : fs::directory_iterator(out + "/pairs")) {
-      const std::string name = e.path().filename().string();
-      if (!e.is_directory() || name.rfind(".", 0) == 0 ||
-          !fs::exists(e.path() / "meta.json") ||
-          !fs::is_directory(e.path() / "upstream"))
-        continue;
-      const PairMeta m = ReadPairMeta(e.path().string());
-      if (!m.upstream_scene_idx) continue;
-      char sample[32];
-      std::snprintf(sample, sizeof(sample), "sample_%06d",
-                    *m.upstream_scene_idx);
-      const fs::path link = fs::path(root) / sample;
-      fs::create_directories(root);
-      std::error_code ec;
-      fs::remove(link, ec);
-      fs::create_directory_symlink(fs::path("..") / "pairs" / name / "upstream",
-                                   link, ec);
-      GEODRIVE_CHECK_INPUT(!ec, link.string(), ": cannot create link (",
-                           ec.message(), ")");
-      // Through the JSON library: file names from the tables are data (a
-      // quote or a control byte in one is escaped, never written raw).
-      nlohmann::json j;
-      j["gt_frames"] = nlohmann::json::array();
-      j["render_frames"] = nlohmann::json::array();
-      for (size_t i = 0; i < m.frames.size(); ++i) {
-        j["gt_frames"].push_back(m.frames[i].filename);
-        j["render_frames"].push_back(std::string(sample) + "/render_" +
-                                     std::to_string(i) + ".png");
-      }
-      j["scene_idx"] = *m.upstream_scene_idx;
-      const std::string line = j.dump();
-      samples.emplace_back(*m.upstream_scene_idx, line);
+  for (const std::string& name : internal::PairsWithExport(out, "upstream")) {
+    const PairMeta m = ReadPairMeta(out + "/pairs/" + name);
+    if (!m.upstream_scene_idx) continue;
+    char sample[32];
+    std::snprintf(sample, sizeof(sample), "sample_%06d", *m.upstream_scene_idx);
+    const fs::path link = fs::path(root) / sample;
+    fs::create_directories(root);
+    std::error_code ec;
+    fs::remove(link, ec);
+    fs::create_directory_symlink(fs::path("..") / "pairs" / name / "upstream",
+                                 link, ec);
+    GEODRIVE_CHECK_INPUT(!ec, link.string(), ": cannot create link (",
+                         ec.message(), ")");
+    // Through the JSON library: file names from the tables are data (a
+    // quote or a control byte in one is escaped, never written raw).
+    nlohmann::json j;
+    j["gt_frames"] = nlohmann::json::array();
+    j["render_frames"] = nlohmann::json::array();
+    for (size_t i = 0; i < m.frames.size(); ++i) {
+      j["gt_frames"].push_back(m.frames[i].filename);
+      j["render_frames"].push_back(std::string(sample) + "/render_" +
+                                   std::to_string(i) + ".png");
     }
+    j["scene_idx"] = *m.upstream_scene_idx;
+    const std::string line = j.dump();
+    samples.emplace_back(*m.upstream_scene_idx, line);
   }
   if (samples.empty() && !fs::exists(root)) return 0;
   fs::create_directories(root);

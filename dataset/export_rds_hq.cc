@@ -339,19 +339,9 @@ int RdsHqExporter::Finish(const std::string& out) const {
     std::string name, scene;
   };
   std::vector<Clip> clips;
-  if (fs::is_directory(out + "/pairs")) {
-    for (const auto& e : fs::directory_iterator(out + "/pairs")) {
-      const std::string name = e.path().filename().string();
-      if (!e.is_directory() || name.rfind(".", 0) == 0 ||
-          !fs::exists(e.path() / "meta.json") ||
-          !fs::is_directory(e.path() / kFolder))
-        continue;
-      clips.push_back({name, ReadPairMeta(e.path().string()).scene_name});
-    }
-  }
+  for (const std::string& name : internal::PairsWithExport(out, kFolder))
+    clips.push_back({name, ReadPairMeta(out + "/pairs/" + name).scene_name});
   if (clips.empty() && !fs::exists(root)) return 0;
-  std::sort(clips.begin(), clips.end(),
-            [](const Clip& a, const Clip& b) { return a.name < b.name; });
   for (const std::string& field : Fields()) {
     const fs::path dir = fs::path(root) / field;
     fs::create_directories(dir);

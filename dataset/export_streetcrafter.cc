@@ -145,20 +145,11 @@ int StreetCrafterExporter::Finish(const std::string& out) const {
     int frames = 0;
   };
   std::vector<Clip> clips;
-  if (fs::is_directory(out + "/pairs")) {
-    for (const auto& e : fs::directory_iterator(out + "/pairs")) {
-      const std::string name = e.path().filename().string();
-      if (!e.is_directory() || name.rfind(".", 0) == 0 ||
-          !fs::exists(e.path() / "meta.json") ||
-          !fs::is_directory(e.path() / kFolder))
-        continue;
-      const PairMeta m = ReadPairMeta(e.path().string());
-      clips.push_back({name, m.scene_name, static_cast<int>(m.frames.size())});
-    }
+  for (const std::string& name : internal::PairsWithExport(out, kFolder)) {
+    const PairMeta m = ReadPairMeta(out + "/pairs/" + name);
+    clips.push_back({name, m.scene_name, static_cast<int>(m.frames.size())});
   }
   if (clips.empty() && !fs::exists(root)) return 0;
-  std::sort(clips.begin(), clips.end(),
-            [](const Clip& a, const Clip& b) { return a.name < b.name; });
   std::set<std::string> scenes;
   for (const Clip& c : clips) scenes.insert(c.scene);
   const std::set<std::string> val = ValScenes(scenes, options_);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "dataset/internal/exporters.h"
 #include "geometry/util/hash.h"
@@ -126,6 +127,22 @@ void CheckClipForExport(const Exporter& exporter,
 }
 
 namespace internal {
+
+std::vector<std::string> PairsWithExport(const std::string& out,
+                                         const std::string& folder) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> names;
+  if (!fs::is_directory(out + "/pairs")) return names;
+  for (const auto& e : fs::directory_iterator(out + "/pairs")) {
+    const std::string name = e.path().filename().string();
+    if (e.is_directory() && name.rfind(".", 0) != 0 &&
+        fs::exists(e.path() / "meta.json") &&
+        fs::is_directory(e.path() / folder))
+      names.push_back(name);
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
 
 std::set<std::string> ValScenes(const std::set<std::string>& scenes,
                                 const ExportOptions& options) {

@@ -5,6 +5,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "dataset/exporter.h"
 
@@ -19,6 +20,11 @@ std::unique_ptr<Exporter> CreateGen3cExporter(const ExportOptions& options);
 std::unique_ptr<Exporter> CreateRdsHqExporter(const ExportOptions& options);
 std::unique_ptr<Exporter> CreateDrivestudioExporter(
     const ExportOptions& options);
+
+// The pair folders under `out`/pairs that hold an export's `folder` (finished
+// pairs only: not hidden, with their meta.json), by name.
+std::vector<std::string> PairsWithExport(const std::string& out,
+                                         const std::string& folder);
 
 // Scenes for validation: the first round(fraction * scenes) in the order of a
 // seeded hash of their names (independent of the clip order), leaving at
