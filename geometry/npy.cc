@@ -628,9 +628,9 @@ NpyArray ConvertNpyToFloat32(NpyArray in) {
   return out;
 }
 
-std::string SerializeNpy(const std::string& path,
-                         const NpyArray& array,
-                         const NpyWriteOptions& options) {
+std::string NpyFileHeader(const std::string& path,
+                          const NpyArray& array,
+                          const NpyWriteOptions& options) {
   if (options.major_version < 1 || options.major_version > 3) {
     ThrowInputError(path, "unsupported .npy format version ",
                     options.major_version, " (supported: 1, 2, 3)");
@@ -649,7 +649,6 @@ std::string SerializeNpy(const std::string& path,
                     nbytes);
   }
   const size_t elem = NpyDtypeSize(array.dtype);
-  const bool fortran = options.fortran_order && array.shape.size() > 1;
   // Header exactly as numpy 1.24's _write_array_header + _wrap_header produce
   // it.
   std::string descr = NpyDtypeDescr(array.dtype);
@@ -680,6 +679,24 @@ std::string SerializeNpy(const std::string& path,
   out += dict;
   out.append(padlen, ' ');
   out += '\n';
+  return out;
+}
+
+bool NpyDataIsStoredAsIs(const NpyArray& array,
+                         const NpyWriteOptions& options) {
+  const bool fortran = options.fortran_order && array.shape.size() > 1;
+  const bool swap = options.big_endian == HostIsLittleEndian() &&
+                    NpyDtypeSize(array.dtype) > 1;
+  return !fortran && !swap;
+}
+
+std::string SerializeNpy(const std::string& path,
+                         const NpyArray& array,
+                         const NpyWriteOptions& options) {
+  std::string out = NpyFileHeader(path, array, options);
+  const size_t elem = NpyDtypeSize(array.dtype);
+  const bool fortran = options.fortran_order && array.shape.size() > 1;
+  const size_t nbytes = array.bytes.size();
   const size_t data_start = out.size();
   out.resize(data_start + nbytes);
   uint8_t* data = reinterpret_cast<uint8_t*>(&out[data_start]);

@@ -99,6 +99,16 @@ struct NpyWriteOptions {
   bool fortran_order = false;  // write column-major data
   bool big_endian = false;     // write big-endian data (descr '>f4' ...)
 };
+// The header of the .npy file of `array` (magic, version, dictionary,
+// padding): the first bytes of SerializeNpy's output. `path` only names the
+// file in errors; throws InputError on a bad shape or size.
+std::string NpyFileHeader(const std::string& path,
+                          const NpyArray& array,
+                          const NpyWriteOptions& options = {});
+// True when the file's data are array.bytes unchanged (C order or one
+// dimension, the host's byte order): the file is NpyFileHeader + bytes.
+bool NpyDataIsStoredAsIs(const NpyArray& array,
+                         const NpyWriteOptions& options = {});
 // The whole .npy file of `array` (what WriteNpy writes); `path` only names
 // the file in errors. Throws InputError on a bad shape or size.
 std::string SerializeNpy(const std::string& path,

@@ -263,19 +263,42 @@ std::string NpzReader::ReadString(const std::string& key) const {
 void WriteNpz(const std::string& path,
               const std::vector<std::pair<std::string, NpyArray>>& arrays,
               bool compress) {
-  // Each member is the .npy file (format 1.0) WriteNpy would write, built
-  // in memory.
+  // Each member is the .npy file (format 1.0) WriteNpy would write: its
+  // header, then the array's own bytes where they are stored as they are
+  // (no copy of the data), else the whole file built in memory.
   const std::string tmp = path + ".tmp-npz";
-  std::vector<std::string> members;
-  members.reserve(arrays.size());
-  for (const auto& [name, array] : arrays)
-    members.push_back(SerializeNpy(path + ":" + name, array));
+  std::vector<std::string> heads, files;
+  heads.reserve(arrays.size());
+  files.reserve(arrays.size());
+  for (const auto& [name, array] : arrays) {
+    const std::string what = path + ":" + name;
+    if (NpyDataIsStoredAsIs(array)) {
+      heads.push_back(NpyFileHeader(what, array));
+      files.emplace_back();
+    } else {
+      heads.emplace_back();
+      files.push_back(SerializeNpy(what, array));
+    }
+  }
   int error = 0;
   zip_t* z = zip_open(tmp.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &error);
   GEODRIVE_CHECK_INPUT(z != nullptr, path, ": cannot create the archive");
   for (size_t i = 0; i < arrays.size(); ++i) {
+    // libzip only reads the fragments (freep = 0).
+    auto bytes = [](const auto& v) {
+      return const_cast<zip_uint8_t*>(
+          reinterpret_cast<const zip_uint8_t*>(v.data()));
+    };
+    const std::vector<uint8_t>& data = arrays[i].second.bytes;
+    std::vector<zip_buffer_fragment_t> fragments;
+    if (files[i].empty()) {
+      fragments.push_back({bytes(heads[i]), heads[i].size()});
+      if (!data.empty()) fragments.push_back({bytes(data), data.size()});
+    } else {
+      fragments.push_back({bytes(files[i]), files[i].size()});
+    }
     zip_source_t* src =
-        zip_source_buffer(z, members[i].data(), members[i].size(), 0);
+        zip_source_buffer_fragment(z, fragments.data(), fragments.size(), 0);
     const zip_int64_t index =
         src ? zip_file_add(z, (arrays[i].first + ".npy").c_str(), src,
                            ZIP_FL_ENC_UTF_8)
