@@ -3,7 +3,8 @@
 // gen3c_dynamic.py), as docs/reference/trainer-formats.md §1 cites it
 // ("GEN3C" there). Per clip, PAIR/gen3c/ (linked as OUT/gen3c/<clip>/):
 //
-//   rgb.mp4      the camera frames, H.264 (read with cv2.VideoCapture,
+//   rgb.mp4      the camera frames, H.264 at the pair videos' --x264-preset
+//                and --crf (read with cv2.VideoCapture,
 //                data_loader_utils.py:142-153)
 //   depth.npz    depth (T,H,W) float32: the condition's z-depth in metres,
 //                0 where no point was drawn or beyond 100 m (GEN3C maps NaN
@@ -130,6 +131,8 @@ class Gen3cExporter : public Exporter {
     fs::create_directories(dir);
     H264Options vo;
     vo.fps = kFps;
+    vo.preset = clip.video_preset;
+    vo.crf = clip.video_crf;
     WriteH264Mp4(dir + "/rgb.mp4", *clip.images, vo);
     WriteDepthAndMask(dir, clip);
     WriteCameras(dir, clip);

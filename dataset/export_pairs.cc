@@ -54,6 +54,8 @@ BuildDatasetOptions OptionsOfPair(const PairMeta& meta,
     o.height = j.at("height").get<int>();
     o.resize_mode = ParseResizeMode(j.at("resize_mode").get<std::string>());
     o.fps = j.at("fps").get<double>();
+    o.video_preset = j.value("video_preset", o.video_preset);
+    o.video_crf = j.value("video_crf", o.video_crf);
     o.min_confidence = j.at("min_confidence").get<double>();
     o.min_depth_m = j.at("min_depth_m").get<double>();
     o.max_depth_m = j.at("max_depth_m").get<double>();

@@ -158,6 +158,10 @@ struct ExportClip {
   // With ExportRequirements::native_condition: the renderer's frames before
   // the resize to the pair's size; null otherwise.
   const std::vector<cv::Mat>* native_condition = nullptr;
+  // x264 preset and CRF of the pair's own videos (--x264-preset, --crf), for
+  // an exporter that writes video.
+  std::string video_preset = "ultrafast";
+  int video_crf = 18;
   // Frame 0 at the source size (empty: read it from first_frame_path).
   cv::Mat first_frame_full;
   std::string first_frame_path;

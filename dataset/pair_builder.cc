@@ -669,6 +669,8 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
     if (req.native_condition) ec.native_condition = &cond.native_frames;
     if (!frames.full.empty()) ec.first_frame_full = frames.full.front();
     ec.first_frame_path = frames.first_frame_path;
+    ec.video_preset = opt.video_preset;
+    ec.video_crf = opt.video_crf;
     ec.camera = scene.CameraAt(eopt.width, eopt.height, eopt.resize_mode);
     ec.world_from_cam = scene.trajectory.world_from_cam;
     for (const DriveFrame& df : clip.frames)
