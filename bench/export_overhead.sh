@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# What each --export adds to build-dataset's time per clip: the same clips
+# built without an export and with one format at a time, one worker thread,
+# process CPU (user + sys) and the builder's worker CPU per clip compared.
+# docs/PERFORMANCE.md "Exports".
+#
+#   bash bench/export_overhead.sh GEODRIVE [REAL_SCENE_ROOT]
+#
+# Two sets of clips, as each format's frame count allows:
+#  - the real scene-0916 extract (REAL_SCENE_ROOT, default
+#    ../shared/data/real/nuscenes_scene0916; 3 keyframe clips of 25 frames,
+#    --geometry lidar): none, streetcrafter, drivestudio, geodrive-upstream;
+#  - one synthetic 121-frame clip at 12 Hz (`geodrive synth --duration 10.5`,
+#    1600x900, made here; --clip-frames 121): none, gen3c, rds-hq.
+# Environment: MAX_CLIPS (default 3, real scene), CORE (pin to this core).
+set -euo pipefail
+if [[ $# -lt 1 ]]; then
+  sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
+  exit 2
+fi
+GEODRIVE=$1
+REAL=${2:-../shared/data/real/nuscenes_scene0916}
+MAX_CLIPS=${MAX_CLIPS:-3}
+work=$(mktemp -d "${TMPDIR:-/tmp}/export_overhead.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+pin=()
+[[ -n ${CORE:-} ]] && pin=(taskset -c "$CORE")
+
+# build NAME EXPORT ARGS...: one build-dataset run; prints and records
+# "<process CPU s per clip> <worker CPU s per clip>".
+build() {
+  local name=$1 export=$2
+  shift 2
+  local log=$work/$name.log
+  /usr/bin/time -f "%U %S" -o "$work/$name.time" "${pin[@]}" "$GEODRIVE" build-dataset \
+    --threads 1 --export "$export" --out "$work/out_$name" "$@" >"$log" 2>&1
+  local clips worker process
+  clips=$(grep -o 'pairs built [0-9]*' "$log" | grep -o '[0-9]*$')
+  worker=$(grep '^CPU per stage' "$log" | sed 's/.*threads): //' |
+    awk '{ s = 0; for (i = 2; i <= NF; i += 2) s += $i; print s }')
+  process=$(awk '{ print $1 + $2 }' "$work/$name.time")
+  echo "$(echo "$process / $clips" | bc -l) $(echo "$worker / $clips" | bc -l)" >"$work/$name.sum"
+  printf '%-24s clips %s  process CPU/clip %7.3f s  worker CPU/clip %7.3f s\n' "$name" "$clips" \
+    "$(echo "$process / $clips" | bc -l)" "$(echo "$worker / $clips" | bc -l)"
+}
+
+# ratio BASE NAME: the export's process CPU against the build without one.
+ratio() {
+  local b p
+  read -r b _ <"$work/$1.sum"
+  read -r p _ <"$work/$2.sum"
+  printf '  %-22s adds %+.0f %% (%+.3f s per clip)\n' "$2" "$(echo "($p / $b - 1) * 100" | bc -l)" \
+    "$(echo "$p - $b" | bc -l)"
+}
+
+echo "real scene-0916, keyframe clips of 25 frames, --geometry lidar:"
+real=(--dataroot "$REAL" --version v1.0-mini-extract --frames keyframes --geometry lidar
+  --max-clips "$MAX_CLIPS")
+build real_none none "${real[@]}"
+for f in streetcrafter drivestudio geodrive-upstream; do build "real_$f" "$f" "${real[@]}"; done
+for f in streetcrafter drivestudio geodrive-upstream; do ratio real_none "real_$f"; done
+
+echo "synthetic, one clip of 121 frames at 12 Hz, --geometry lidar:"
+"$GEODRIVE" synth --out "$work/synth" --scenes 1 --duration 10.5 >/dev/null
+synth=(--dataroot "$work/synth" --geometry lidar --clip-frames 121 --max-clips 1)
+build synth_none none "${synth[@]}"
+for f in gen3c rds-hq; do build "synth_$f" "$f" "${synth[@]}"; done
+for f in gen3c rds-hq; do ratio synth_none "synth_$f"; done
