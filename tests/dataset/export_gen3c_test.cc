@@ -64,6 +64,10 @@ BuildDatasetOptions Options(const std::string& out) {
   o.clip_frames = kFrames;
   o.clips = {kClip};
   o.exports = {ExportFormat::kGen3c};
+  // The pair itself at the source size (its 121 frames are not what is
+  // tested here; the export renders at 1280x704 whatever the pair's size).
+  o.width = 320;
+  o.height = 180;
   return o;
 }
 
