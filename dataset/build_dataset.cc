@@ -861,6 +861,54 @@ DriveDatasetOptions DatasetOptionsOf(const BuildDatasetOptions& opt) {
 
 }  // namespace internal
 
+namespace {
+
+// The clips whose scene-source folder exists; a clip without one is counted
+// as skipped, unless the user asked for it by id (then its build fails).
+std::vector<std::string> ClipsWithFolders(std::vector<std::string> clips,
+                                          const SceneFolders& folders,
+                                          const BuildDatasetOptions& opt,
+                                          BuildDatasetSummary* summary) {
+  std::vector<std::string> kept;
+  for (auto& c : clips) {
+    if (folders.Find(c)) {
+      kept.push_back(std::move(c));
+    } else if (opt.clips.empty()) {
+      ++summary->skipped_no_monst3r;
+    } else {
+      // Asked for explicitly: a missing folder is a failure.
+      kept.push_back(std::move(c));
+    }
+  }
+  return kept;
+}
+
+// After an unsharded run: the logs rewritten for the run's clips, the
+// exporters' indexes and the report. A log or report that cannot be written
+// (a full disk, a file-size limit, a device in its place) fails the run,
+// naming the file.
+void FinishRun(const BuildDatasetOptions& opt,
+               const std::vector<std::unique_ptr<Exporter>>& exporters,
+               RunRecord* run,
+               BuildDatasetSummary* summary) {
+  const auto write = [summary](const std::function<void()>& step) {
+    try {
+      step();
+    } catch (const InputError& e) {
+      ++summary->log_write_errors;
+      std::cerr << "build-dataset: " << e.what() << "\n";
+    } catch (const fs::filesystem_error& e) {
+      ++summary->log_write_errors;
+      std::cerr << "build-dataset: " << e.what() << "\n";
+    }
+  };
+  write([&] { RewriteLogs(opt.out, run); });
+  for (const auto& e : exporters) write([&] { e->Finish(opt.out); });
+  write([&] { WriteBuildReport(opt.out, summary); });
+}
+
+}  // namespace
+
 BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   opt.Check();
   const auto t_start = std::chrono::steady_clock::now();
@@ -893,18 +941,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
     folders = std::make_unique<SceneFolders>(opt.monst3r_root, opt.monst3r_map,
                                              traits.folder_marker);
     ctx.folders = folders.get();
-    std::vector<std::string> kept;
-    for (auto& c : clips) {
-      if (folders->Find(c)) {
-        kept.push_back(std::move(c));
-      } else if (opt.clips.empty()) {
-        ++summary.skipped_no_monst3r;
-      } else {
-        // Asked for explicitly: a missing folder is a failure.
-        kept.push_back(std::move(c));
-      }
-    }
-    clips = std::move(kept);
+    clips = ClipsWithFolders(std::move(clips), *folders, opt, &summary);
   }
   std::map<std::string, PairNovelView> novel_views;
   ctx.novel_views = &novel_views;
@@ -998,24 +1035,7 @@ BuildDatasetSummary BuildDataset(BuildDatasetOptions opt) {
   summary.seconds_total =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start)
           .count();
-  if (opt.shard_count == 1) {
-    // A log or report that cannot be written (a full disk, a file-size
-    // limit, a device in its place) fails the run, naming the file.
-    const auto write = [&summary](const std::function<void()>& step) {
-      try {
-        step();
-      } catch (const InputError& e) {
-        ++summary.log_write_errors;
-        std::cerr << "build-dataset: " << e.what() << "\n";
-      } catch (const fs::filesystem_error& e) {
-        ++summary.log_write_errors;
-        std::cerr << "build-dataset: " << e.what() << "\n";
-      }
-    };
-    write([&] { RewriteLogs(opt.out, &run); });
-    for (const auto& e : exporters) write([&] { e->Finish(opt.out); });
-    write([&] { WriteBuildReport(opt.out, &summary); });
-  }
+  if (opt.shard_count == 1) FinishRun(opt, exporters, &run, &summary);
   return summary;
 }
 
