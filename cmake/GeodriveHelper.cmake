@@ -37,13 +37,18 @@ function(geodrive_add_library)
   install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/geodrive/${include_subdir})
 endfunction()
 
-# geodrive_add_test(MODULE <module> [SRCS ...] LINK_LIBS ... [ENVIRONMENT VAR=value])
+# geodrive_add_test(MODULE <module> [SRCS ...] LINK_LIBS ... [ENVIRONMENT VAR=value]
+#                   [ONE_PROCESS_PER_SUITE])
 #
 # One GoogleTest executable per module (tests/<module>/*_test.cc by default), linked to the shared
 # seeded test main; each TEST becomes a CTest test named <module>/<Suite>.<Name>, labelled <module>,
-# run with ENVIRONMENT (one VAR=value) when given.
+# run with ENVIRONMENT (one VAR=value) when given. With ONE_PROCESS_PER_SUITE each test suite is
+# one CTest test instead, <module>/<Suite> (--gtest_filter=<Suite>.*), for executables whose
+# start-up is expensive (LibTorch's operator registry: 0.7 s per process); the suites are read from
+# the sources' TEST/TEST_F lines, and <module>/SuitesCoverEveryTest fails when the executable
+# holds a test that no suite entry runs.
 function(geodrive_add_test)
-  cmake_parse_arguments(ARG "" "MODULE;ENVIRONMENT" "SRCS;LINK_LIBS" ${ARGN})
+  cmake_parse_arguments(ARG "ONE_PROCESS_PER_SUITE" "MODULE;ENVIRONMENT" "SRCS;LINK_LIBS" ${ARGN})
   if(NOT ARG_SRCS)
     file(GLOB ARG_SRCS CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cc)
   endif()
@@ -59,11 +64,33 @@ function(geodrive_add_test)
   if(ARG_ENVIRONMENT)
     list(APPEND props ENVIRONMENT ${ARG_ENVIRONMENT})
   endif()
-  gtest_discover_tests(${target}
-    TEST_PREFIX "${ARG_MODULE}/"
-    PROPERTIES ${props}
-    DISCOVERY_MODE PRE_TEST
-    DISCOVERY_TIMEOUT 60)
+  if(NOT ARG_ONE_PROCESS_PER_SUITE)
+    gtest_discover_tests(${target}
+      TEST_PREFIX "${ARG_MODULE}/"
+      PROPERTIES ${props}
+      DISCOVERY_MODE PRE_TEST
+      DISCOVERY_TIMEOUT 60)
+    return()
+  endif()
+  # A new suite in a source re-runs the configure step.
+  set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${ARG_SRCS})
+  set(suites)
+  foreach(src IN LISTS ARG_SRCS)
+    file(STRINGS ${src} lines REGEX "^TEST(_F)?\\( *[A-Za-z0-9_]+ *,")
+    foreach(line IN LISTS lines)
+      string(REGEX REPLACE "^TEST(_F)?\\( *([A-Za-z0-9_]+).*" "\\2" suite "${line}")
+      list(APPEND suites ${suite})
+    endforeach()
+  endforeach()
+  list(REMOVE_DUPLICATES suites)
+  foreach(suite IN LISTS suites)
+    add_test(NAME ${ARG_MODULE}/${suite} COMMAND ${target} --gtest_filter=${suite}.*)
+    set_tests_properties(${ARG_MODULE}/${suite} PROPERTIES ${props})
+  endforeach()
+  add_test(NAME ${ARG_MODULE}/SuitesCoverEveryTest
+    COMMAND ${CMAKE_COMMAND} -DBINARY=$<TARGET_FILE:${target}> "-DSUITES=${suites}"
+            -P ${PROJECT_SOURCE_DIR}/cmake/check_test_suites.cmake)
+  set_tests_properties(${ARG_MODULE}/SuitesCoverEveryTest PROPERTIES ${props})
 endfunction()
 
 # geodrive_add_plugin(NAME <target> FILE_NAME <stem> SRCS ... [LINK_LIBS ...])
