@@ -35,12 +35,19 @@ if [[ ${#need[@]} -gt 0 ]]; then
   $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}"
 fi
 build=${BUILD_DIR:-build-asan}
+# The tests left out (the list above), as a negative --gtest_filter pattern: a sanitizer build runs
+# each test suite in one process (cmake/GeodriveHelper.cmake), and this pattern is left out of each.
+left_out='ExportGen3c.PythonMirror*:ExportGen3c.ExportingBuilt*'
+left_out+=':BuildDataset.LidarGeometryNeedsNoMonst3rAndBuildsEveryClip'
+left_out+=':Reconstruction.BuilderBuildsVggt*:Reconstruction.BuilderBuildsDepthAnything3*'
+left_out+=':Reconstruction.BuilderBuildsMegaSam*:Reconstruction.BuilderBuildsGenericNpz*'
 flags="-O2 -gline-tables-only -DNDEBUG"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
   -DCMAKE_C_FLAGS_RELWITHDEBINFO="$flags" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$flags" \
   -DGEODRIVE_SANITIZE=address,undefined -DGEODRIVE_FUZZ=ON \
-  -DGEODRIVE_WITH_TORCH=OFF -DGEODRIVE_WITH_MPI=OFF -DGEODRIVE_BUILD_TESTS=ON -DCMAKE_UNITY_BUILD=ON
+  -DGEODRIVE_WITH_TORCH=OFF -DGEODRIVE_WITH_MPI=OFF -DGEODRIVE_BUILD_TESTS=ON -DCMAKE_UNITY_BUILD=ON \
+  -DGEODRIVE_TESTS_LEFT_OUT="$left_out"
 cmake --build "$build"
 # Leaks are findings too; UBSan reports stop the process (and fail the test).
 export ASAN_OPTIONS=detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=0
@@ -54,9 +61,6 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-2}"
 costs="$build"/Testing/Temporary/CTestCostData.txt
 [[ -f $costs ]] || { mkdir -p "$(dirname "$costs")" && cp tests/ctest_costs/asan.txt "$costs"; }
 df -Pm "$build" | awk 'NR == 2 { printf "disk: %.1f GB free under the sanitizer build (the tests need about 2 GB)\n", $4 / 1024 }'
-left_out='HostileSizes|ExportGen3c\.(PythonMirror|ExportingBuilt)'
-left_out+='|BuildDataset\.LidarGeometryNeedsNoMonst3rAndBuildsEveryClip'
-left_out+='|Reconstruction\.BuilderBuilds(Vggt|DepthAnything3|MegaSam|GenericNpz)LikeMonst3r'
-ctest --test-dir "$build" --output-on-failure -j "$(nproc)" --timeout 1500 -LE install -E "$left_out"
+ctest --test-dir "$build" --output-on-failure -j "$(nproc)" --timeout 1500 -LE install -E HostileSizes
 # The fuzz targets one per core (each its own process; the lines come out in target order).
 FUZZ_JOBS="${FUZZ_JOBS:-$(nproc)}" bash scripts/run_fuzz.sh "$build" "${FUZZ_SECONDS:-20}"
