@@ -8,6 +8,7 @@
 #include "geometry/util/memory.h"
 #include "geometry/util/status.h"
 #include "render/footprint.h"
+#include "render/video/video_io.h"
 
 // Every source's factory, declared from the registry list.
 #define GEODRIVE_SCENE_SOURCE(identifier, name) \
@@ -116,6 +117,8 @@ std::vector<std::string> SceneSourceNames() {
 }
 
 std::unique_ptr<SceneSource> CreateSceneSource(const std::string& name) {
+  // Reconstructions that keep their images in a video (the GEN3C export).
+  RegisterVideoDecoderForReconstructions();
   for (const Entry& e : Registry()) {
     if (name == e.name) return e.create();
   }

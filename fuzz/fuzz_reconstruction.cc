@@ -2,7 +2,11 @@
 // (geometry/reconstruction.h): VGGT predictions.npz, Depth Anything 3
 // results.npz, MegaSaM *_sgd_cvd_hr.npz and the generic npz -- keys, shapes,
 // dtypes, poses, intrinsics, confidence scales, string members -- on top of
-// the zip and .npy layers that fuzz_npz covers.
+// the zip and .npy layers that fuzz_npz covers; and the GEN3C export's clip
+// folder with the input as both depth.npz and camera.npz (its header checks:
+// this target links no video decoder, so the read ends at rgb.mp4).
+#include <filesystem>
+
 #include "fuzz/fuzz_util.h"
 #include "geometry/reconstruction.h"
 
@@ -21,5 +25,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       r.LoadFrame(0);
     });
   }
+  static const std::string gen3c = [] {
+    const std::string dir = fuzz::InputPath("gen3c");
+    std::filesystem::create_directories(dir);
+    fuzz::WriteInput(dir + "/rgb.mp4", nullptr, 0);
+    return dir;
+  }();
+  fuzz::WriteInput(gen3c + "/depth.npz", data, size);
+  fuzz::WriteInput(gen3c + "/camera.npz", data, size);
+  fuzz::ExpectReturnOrInputError([&] { DetectReconstructionFormat(gen3c); });
+  fuzz::ExpectReturnOrInputError([&] {
+    ReadReconstruction(ReconstructionFormat::kGenericNpz, gen3c, options);
+  });
   return 0;
 }

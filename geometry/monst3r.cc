@@ -163,6 +163,8 @@ std::string ToString(GridResize resize) {
       return "vggt-518";
     case GridResize::kStretch:
       return "stretch";
+    case GridResize::kCenterCrop:
+      return "center-crop";
   }
   return "?";
 }
@@ -187,9 +189,11 @@ ImageResizeSpec ComputeGridResizeSpec(GridResize rule,
       return s;
     }
     case GridResize::kStretch:
+    case GridResize::kCenterCrop:
       break;
   }
-  return ImageResizeSpec{};  // kStretch needs the grid: see SourceToGrid
+  // kStretch and kCenterCrop need the grid: see SourceToGrid.
+  return ImageResizeSpec{};
 }
 
 namespace {
@@ -261,6 +265,9 @@ Monst3rFolder Monst3rFolder::FromFrames(std::string name,
 }
 
 ImageResizeSpec Monst3rFolder::SourceToGrid(int in_width, int in_height) const {
+  if (grid_resize_ == GridResize::kCenterCrop)
+    return ComputeResizeSpec(in_width, in_height, width_, height_,
+                             ResizeMode::kCenterCrop);
   if (grid_resize_ != GridResize::kStretch)
     return ComputeGridResizeSpec(grid_resize_, in_width, in_height);
   ImageResizeSpec s;

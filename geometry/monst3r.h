@@ -35,11 +35,11 @@ namespace geodrive {
 // One frame's data. Matrices are empty when not loaded or absent.
 struct Monst3rFrame {
   int index = -1;
-  PinholeCamera camera;           // processed-image pixels, kIntegerIndex
-  Rigid3d world_from_cam;         // from pred_traj.txt
-  cv::Mat depth;                  // CV_32FC1 z-depth (MonST3R units)
-  cv::Mat rgb;                    // CV_8UC3, RGB order
-  cv::Mat log_confidence;         // CV_32FC1 conf_{i}.npy (may hold -inf)
+  PinholeCamera camera;    // processed-image pixels, kIntegerIndex
+  Rigid3d world_from_cam;  // from pred_traj.txt
+  cv::Mat depth;           // CV_32FC1 z-depth (MonST3R units)
+  cv::Mat rgb;             // CV_8UC3, RGB order
+  cv::Mat log_confidence;  // CV_32FC1 conf_{i}.npy (may hold -inf)
   // CV_32FC1 confidence already in [0, 1]: other tools' reconstructions
   // (geometry/reconstruction.h), used when log_confidence is empty.
   cv::Mat confidence01;
@@ -73,9 +73,15 @@ enum class GridResize {
   // The whole source image resized to the grid (per-axis scale; Depth
   // Anything 3, MegaSaM, MoGe, the generic npz).
   kStretch,
+  // The source image centre-cropped to the grid's aspect and resized to it
+  // (ComputeResizeSpec's kCenterCrop: the toolkit's trainer exports, e.g.
+  // GEN3C's 1280x704).
+  kCenterCrop,
 };
 std::string ToString(GridResize resize);
-// The resize of a source image of in_width x in_height by `rule`.
+// The resize of a source image of in_width x in_height by `rule` (kStretch
+// and kCenterCrop: an empty spec, as they need the grid: see
+// Monst3rFolder::SourceToGrid).
 ImageResizeSpec ComputeGridResizeSpec(GridResize rule,
                                       int in_width,
                                       int in_height);

@@ -1,5 +1,7 @@
 #include "geometry/reconstruction.h"
 
+#include <mutex>
+
 #include "geometry/reconstruction/common.h"
 #include "geometry/util/status.h"
 
@@ -43,6 +45,27 @@ ReconstructionFormat ParseReconstructionFormat(const std::string& text) {
 }
 
 bool ReconstructionReadOptions::Check() const { return max_bytes > 0; }
+
+namespace {
+std::mutex& VideoDecoderMutex() {
+  static std::mutex m;
+  return m;
+}
+ReconstructionVideoDecoder& VideoDecoder() {
+  static ReconstructionVideoDecoder decoder;
+  return decoder;
+}
+}  // namespace
+
+void SetReconstructionVideoDecoder(ReconstructionVideoDecoder decoder) {
+  const std::lock_guard<std::mutex> lock(VideoDecoderMutex());
+  VideoDecoder() = std::move(decoder);
+}
+
+ReconstructionVideoDecoder GetReconstructionVideoDecoder() {
+  const std::lock_guard<std::mutex> lock(VideoDecoderMutex());
+  return VideoDecoder();
+}
 
 std::unique_ptr<ReconstructionReader> CreateReconstructionReader(
     ReconstructionFormat format) {

@@ -12,7 +12,9 @@
 // (docs/reference/reconstruction_and_peer_formats.md section 1).
 
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -41,7 +43,9 @@ enum class ReconstructionFormat {
   kMoge,
   // Our generic npz: depth (N,H,W), optional conf with its stated scale,
   // intrinsics (N,3,3) or (3,3), cam_c2w or cam_w2c (N,4,4), optional images,
-  // units. docs/RECONSTRUCTIONS.md has a five-line writer.
+  // units. docs/RECONSTRUCTIONS.md has a five-line writer. The same name
+  // reads our GEN3C export's clip folder (depth.npz, camera.npz, rgb.mp4:
+  // dataset/export_gen3c.cc), recognized by its files.
   kGenericNpz,
 };
 // "monst3r", "vggt", "da3", "cut3r", "megasam", "moge", "npz".
@@ -92,6 +96,22 @@ class ReconstructionReader {
       const std::string& path,
       const ReconstructionReadOptions& options) const = 0;
 };
+
+// The frames of a video file, RGB CV_8UC3, for the formats that keep their
+// images in one (the GEN3C export's rgb.mp4). `frames`, `width` and `height`
+// are what the reconstruction's other files declare: the decoder checks the
+// video's declared size and frame count against them before decoding and
+// throws InputError naming the file when they differ. The geometry library
+// decodes no video: the video module's decoder is set by the programs that
+// link it (RegisterVideoDecoderForReconstructions, render/video/video_io.h;
+// every scene source does); without one, reading such a format is an
+// InputError saying so.
+using ReconstructionVideoDecoder = std::function<std::vector<cv::Mat>(
+    const std::string& path, int64_t frames, int width, int height)>;
+// Sets the decoder for the process (thread-safe; a later call replaces it).
+void SetReconstructionVideoDecoder(ReconstructionVideoDecoder decoder);
+// The decoder set, or an empty function.
+ReconstructionVideoDecoder GetReconstructionVideoDecoder();
 
 std::unique_ptr<ReconstructionReader> CreateReconstructionReader(
     ReconstructionFormat format);

@@ -77,16 +77,16 @@ std::optional<NpyArray> ReadArray(const NpzReader& npz,
   return npz.Read(key, ro);
 }
 
-std::vector<cv::Mat> FloatMaps(const NpyArray& array,
+std::vector<cv::Mat> FloatMaps(NpyArray array,
                                const std::string& what,
                                bool depth) {
-  const auto& s = array.shape;
+  const std::vector<int64_t> s = array.shape;  // array is moved below
   GEODRIVE_CHECK_INPUT(
       (s.size() == 3 || (s.size() == 4 && s[3] == 1)) && s[0] >= 1 &&
           s[1] >= 1 && s[2] >= 1 && s[1] <= 16384 && s[2] <= 16384,
       what, ": shape ", ShapeText(s), ", expected (N, H, W) or (N, H, W, 1)");
   const bool half = array.dtype == NpyDtype::kFloat16;
-  const NpyArray f = ConvertNpyToFloat32(array);
+  const NpyArray f = ConvertNpyToFloat32(std::move(array));
   const int n = static_cast<int>(s[0]), h = static_cast<int>(s[1]),
             w = static_cast<int>(s[2]);
   std::vector<cv::Mat> maps(n);
@@ -124,7 +124,7 @@ cv::Mat FloatMapFromNpy(const std::string& path,
   else
     ThrowInputError(path, "shape ", ShapeText(a.shape),
                     ", expected (H, W) or (H, W, 1)");
-  return FloatMaps(a, path, depth).front();
+  return FloatMaps(std::move(a), path, depth).front();
 }
 
 cv::Mat ConfidenceToUnit(const cv::Mat& map, ConfidenceScale scale) {

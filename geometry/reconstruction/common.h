@@ -40,7 +40,8 @@ std::optional<NpyArray> ReadArray(const NpzReader& npz,
 // (N, H, W) or (N, H, W, 1) numeric -> N CV_32FC1 maps (float16 exactly).
 // Depths: `depth` true rejects +inf (float16 overflow: "N depths overflow")
 // and NaN-only maps; negatives and zeros stay (invalid pixels downstream).
-std::vector<cv::Mat> FloatMaps(const NpyArray& array,
+// Taken by value: a float32 array passed as an rvalue is not copied.
+std::vector<cv::Mat> FloatMaps(NpyArray array,
                                const std::string& what,
                                bool depth);
 // The same from one .npy file ((H, W) or (H, W, 1)).
@@ -117,5 +118,12 @@ std::unique_ptr<ReconstructionReader> CreateCut3rReader();
 std::unique_ptr<ReconstructionReader> CreateMegaSamReader();
 std::unique_ptr<ReconstructionReader> CreateMogeReader();
 std::unique_ptr<ReconstructionReader> CreateGenericNpzReader();
+// Our GEN3C export's clip folder (gen3c_export.cc), read under the generic
+// npz's name.
+std::unique_ptr<ReconstructionReader> CreateGen3cExportReader();
+// True when `path` (a folder, or its depth.npz) holds the GEN3C export's
+// depth.npz, camera.npz and rgb.mp4 (names only: the generic npz reader hands
+// such a folder to CreateGen3cExportReader, whose errors name what is wrong).
+bool HasGen3cExportFiles(const std::string& path);
 }  // namespace reconstruction
 }  // namespace geodrive

@@ -15,6 +15,8 @@
 //   units                         optional str: "metres" or "relative"
 //                                 (default)
 // The depth grid is the whole source image resized (GridResize::kStretch).
+// A GEN3C export clip folder (depth.npz, camera.npz, rgb.mp4) goes to its own
+// reader (gen3c_export.cc) under this format's name.
 
 #include "geometry/reconstruction/common.h"
 #include "geometry/util/status.h"
@@ -37,6 +39,7 @@ class GenericNpzReader : public ReconstructionReader {
             "units: \"metres\" or \"relative\" (default)"};
   }
   std::optional<std::string> Locate(const std::string& path) const override {
+    if (auto gen3c = CreateGen3cExportReader()->Locate(path)) return gen3c;
     std::optional<std::string> file = FindFile(path, {".npz"});
     if (!file) return std::nullopt;
     if (NpzHasKeys(*file, {"depth", "intrinsics", "cam_c2w"}) ||
@@ -46,6 +49,8 @@ class GenericNpzReader : public ReconstructionReader {
   }
   Monst3rFolder Read(const std::string& path,
                      const ReconstructionReadOptions& options) const override {
+    if (HasGen3cExportFiles(path))
+      return CreateGen3cExportReader()->Read(path, options);
     const std::optional<std::string> file =
         FindFile(path, {".npz"}).value_or(path);
     const NpzReader npz(*file);

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "geometry/image_io.h"
+#include "geometry/reconstruction.h"
 #include "geometry/util/input_file.h"
 #include "geometry/util/status.h"
 #include "render/video/ffmpeg_decode.h"
@@ -223,6 +224,50 @@ std::vector<VideoPairSource> MatchVideos(const std::vector<VideoSource>& pred,
       " ground-truth videos have no prediction with the same id (",
       missing_pred, n_missing_pred > 5 ? ", ..." : "", ")");
   return out;
+}
+
+std::vector<cv::Mat> ReadVideoFramesExactly(const std::string& path,
+                                            int64_t frames,
+                                            int width,
+                                            int height) {
+  CheckVideoFramesFit(path, frames, width, height);
+  VideoFileReader reader(path, /*whole=*/true);
+  GEODRIVE_CHECK_INPUT(reader.width() == width && reader.height() == height,
+                       path, ": frames are ", reader.width(), "x",
+                       reader.height(),
+                       " but the reconstruction's other files "
+                       "are ",
+                       width, "x", height);
+  const int64_t declared = reader.declared_frames();
+  GEODRIVE_CHECK_INPUT(declared == 0 || declared == frames, path, ": ",
+                       declared,
+                       " frames but the reconstruction's other files "
+                       "have ",
+                       frames);
+  std::vector<cv::Mat> out;
+  out.reserve(static_cast<size_t>(frames));
+  cv::Mat rgb;
+  while (reader.Next(&rgb)) {
+    GEODRIVE_CHECK_INPUT(
+        static_cast<int64_t>(out.size()) < frames, path, ": more than ", frames,
+        " frames but the reconstruction's other files have ", frames);
+    out.push_back(std::move(rgb));
+    rgb = cv::Mat();
+  }
+  GEODRIVE_CHECK_INPUT(static_cast<int64_t>(out.size()) == frames, path, ": ",
+                       out.size(),
+                       " frames but the reconstruction's other "
+                       "files have ",
+                       frames);
+  return out;
+}
+
+void RegisterVideoDecoderForReconstructions() {
+  static const bool registered = [] {
+    SetReconstructionVideoDecoder(ReadVideoFramesExactly);
+    return true;
+  }();
+  (void)registered;
 }
 
 }  // namespace geodrive

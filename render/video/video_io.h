@@ -57,6 +57,19 @@ void WriteVideoFrames(const std::string& path,
                       const std::vector<cv::Mat>& frames,
                       double fps = 8);
 
+// The frames of the video file `path` when it must hold exactly `frames`
+// frames of `width` x `height` (a reconstruction's images, e.g. the GEN3C
+// export's rgb.mp4): the header's frame size and declared frame count are
+// checked before anything is decoded, and decoding stops with an InputError
+// naming the file at the first frame too many or when it ends short.
+std::vector<cv::Mat> ReadVideoFramesExactly(const std::string& path,
+                                            int64_t frames,
+                                            int width,
+                                            int height);
+// Sets ReadVideoFramesExactly as the decoder of the reconstruction readers
+// (SetReconstructionVideoDecoder, geometry/reconstruction.h). Idempotent.
+void RegisterVideoDecoderForReconstructions();
+
 // One video of a collection: id (clip id or file stem) and where its frames
 // are.
 struct VideoSource {
