@@ -21,77 +21,22 @@
 #include "geometry/npz.h"
 #include "geometry/util/status.h"
 #include "tests/common/test_util.h"
+#include "tests/dataset/export_gen3c_fixture.h"
 
 namespace geodrive {
 namespace export_gen3c_test {
 
 namespace fs = std::filesystem;
 
-constexpr int kFrames = 121, kWidth = 1280, kHeight = 704;
-
-// One scene at the full 12 Hz camera rate, 10.5 s (126 frames: one 121-frame
-// clip), small images to keep the test short (the export renders at 1280x704
-// whatever the source size).
-const SyntheticDatasetOptions& WorldOptions() {
-  static const SyntheticDatasetOptions o = [] {
-    SyntheticDatasetOptions w;
-    w.num_scenes = 1;
-    w.seed = 7;
-    w.image_width = 320;
-    w.image_height = 180;
-    w.scene_duration_s = 10.5;
-    return w;
-  }();
-  return o;
-}
-
-const std::string& World() {
-  static const std::string root =
-      test::SharedFixtureDir("export_gen3c_world", [](const std::string& dir) {
-        WriteSyntheticDataset(WorldOptions(), dir);
-      });
-  return root;
-}
-
-constexpr char kClip[] = "scene-0001_0000";
-
-BuildDatasetOptions Options(const std::string& out) {
-  BuildDatasetOptions o;
-  o.dataroot = World();
-  o.geometry = "lidar";
-  o.out = out;
-  o.quiet = true;
-  o.clip_frames = kFrames;
-  o.clips = {kClip};
-  o.exports = {ExportFormat::kGen3c};
-  // The pair itself at the source size (its 121 frames are not what is
-  // tested here; the export renders at 1280x704 whatever the pair's size).
-  o.width = 320;
-  o.height = 180;
-  return o;
-}
-
-const std::string& Export() {
-  static const std::string out =
-      test::SharedFixtureDir("export_gen3c_out", [](const std::string& dir) {
-        const BuildDatasetSummary s = BuildDataset(Options(dir));
-        std::printf("gen3c export: %s\n", s.BriefReport().c_str());
-        EXPECT_EQ(s.built, 1) << test::ReadFile(dir + "/failures.jsonl");
-      });
-  return out;
-}
-
-// The clip as the builder loads it (121 frames).
-DriveClip LoadClip() {
-  DriveDatasetOptions dopt;
-  dopt.root = World();
-  dopt.clip_frames = kFrames;
-  DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
-  EXPECT_EQ(clip.num_frames(), kFrames);
-  return clip;
-}
-
-std::string ClipDir() { return Export() + "/gen3c/" + kClip; }
+using export_gen3c_fixture::ClipDir;
+using export_gen3c_fixture::Export;
+using export_gen3c_fixture::kClip;
+using export_gen3c_fixture::kFrames;
+using export_gen3c_fixture::kHeight;
+using export_gen3c_fixture::kWidth;
+using export_gen3c_fixture::LoadClip;
+using export_gen3c_fixture::Options;
+using export_gen3c_fixture::WorldOptions;
 
 // Another length is refused naming 120 N + 1, per clip and up front.
 TEST(ExportGen3c, OtherLengthsAreRefusedNamingTheRequirement) {
