@@ -79,6 +79,23 @@ ViewCells MakeCells(const PinholeCamera& camera,
   return c;
 }
 
+// Capacity for n points in each attribute `like` has (an empty cloud's
+// Append of `like` then keeps them all).
+void ReserveCloud(const PointCloud& like, size_t n, PointCloud* cloud) {
+  cloud->positions.reserve(n);
+  const auto reserve = [n](const auto& a, auto* b) {
+    if (!a.empty()) b->reserve(n);
+  };
+  reserve(like.colors, &cloud->colors);
+  reserve(like.confidence, &cloud->confidence);
+  reserve(like.instance_ids, &cloud->instance_ids);
+  reserve(like.intensity, &cloud->intensity);
+  reserve(like.ring, &cloud->ring);
+  reserve(like.footprints, &cloud->footprints);
+  reserve(like.footprint_u, &cloud->footprint_u);
+  reserve(like.footprint_v, &cloud->footprint_v);
+}
+
 // cos of the angle between the camera's optical axis and the ray to q.
 double Frontality(const Eigen::Vector3d& q) {
   const double n = q.norm();
@@ -137,9 +154,10 @@ RigScene FuseRigScenes(const DriveClip& clip,
     rig.views.push_back(std::move(v));
   }
   // Ownership: keep p of view k unless a more frontal view has its surface.
+  std::vector<std::vector<size_t>> keeps(views.size());
   for (size_t k = 0; k < views.size(); ++k) {
     const PointCloud& cloud = views[k].cloud;
-    std::vector<size_t> keep;
+    std::vector<size_t>& keep = keeps[k];
     keep.reserve(cloud.size());
     for (size_t i = 0; i < cloud.size(); ++i) {
       const Eigen::Vector3f& p = cloud.positions[i];
@@ -159,12 +177,19 @@ RigScene FuseRigScenes(const DriveClip& clip,
       }
       if (!owned_elsewhere) keep.push_back(i);
     }
+  }
+  // The kept points in view order, into a cloud sized once.
+  size_t total = 0;
+  for (const std::vector<size_t>& keep : keeps) total += keep.size();
+  ReserveCloud(views.front().cloud, total, &rig.cloud);
+  for (size_t k = 0; k < views.size(); ++k) {
+    const PointCloud& cloud = views[k].cloud;
+    const std::vector<size_t>& keep = keeps[k];
     rig.views[k].points_kept = static_cast<int64_t>(keep.size());
-    PointCloud kept = keep.size() == cloud.size() ? cloud : cloud.Select(keep);
-    if (k == 0) {
-      rig.cloud = std::move(kept);
+    if (keep.size() == cloud.size()) {
+      rig.cloud.Append(cloud);
     } else {
-      rig.cloud.Append(kept);
+      rig.cloud.Append(cloud.Select(keep));
     }
     views[k].cloud = PointCloud();
     rig.views[k].source = std::move(views[k]);
@@ -184,33 +209,117 @@ std::vector<size_t> PointsInViewOfAny(
   // point the renderer's own float test could pass.
   struct Pose {
     Eigen::Matrix<float, 3, 4> m;
+    Eigen::Matrix<double, 3, 4> md;
   };
   std::vector<Pose> poses;
   for (const Rigid3d& pose : scene_from_cam) {
     Eigen::Matrix<double, 3, 4> p = pose.Inverse().ToMatrix3x4();
     Eigen::Matrix3d k;
     k << camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1;
-    poses.push_back({(k * p).cast<float>()});
+    poses.push_back({(k * p).cast<float>(), k * p});
   }
   const float lo_z = static_cast<float>(near) - 1e-3f;
   const float hi_z = static_cast<float>(far) + 1e-3f;
   const float m = static_cast<float>(margin_px) + 1.0f;
   const float lo_u = -0.5f - m, hi_u = camera.width - 0.5f + m;
   const float lo_v = -0.5f - m, hi_v = camera.height - 0.5f + m;
-  std::vector<size_t> keep;
-  keep.reserve(cloud.size());
-  for (size_t i = 0; i < cloud.size(); ++i) {
+  // The per-point test on the poses of `test` (indices into poses).
+  const auto in_view = [&](size_t i, const std::vector<int>& test) {
     const Eigen::Vector4f p(cloud.positions[i].x(), cloud.positions[i].y(),
                             cloud.positions[i].z(), 1.0f);
-    for (const Pose& pose : poses) {
+    for (int t : test) {
+      const Pose& pose = poses[t];
       const float z = pose.m.row(2).dot(p);
       if (!(z > lo_z && z < hi_z)) continue;
       const float u = pose.m.row(0).dot(p) / z;
       const float v = pose.m.row(1).dot(p) / z;
-      if (u > lo_u && u < hi_u && v > lo_v && v < hi_v) {
-        keep.push_back(i);
-        break;
+      if (u > lo_u && u < hi_u && v > lo_v && v < hi_v) return true;
+    }
+    return false;
+  };
+  std::vector<int> all_poses(poses.size());
+  for (size_t t = 0; t < poses.size(); ++t) all_poses[t] = static_cast<int>(t);
+  std::vector<size_t> keep;
+  keep.reserve(cloud.size());
+  // In front of the camera (lo_z > 0) the view is the intersection of six
+  // half-spaces, a_j . p + b_j > 0 (z - lo_z, hi_z - z, u z - lo_u z, ...):
+  // per group of consecutive points and pose, their extremes over the
+  // group's bounding box (double) say whether every point of the group
+  // passes the per-point test (all six minima above a margin that covers
+  // the float test's rounding: then all its points are kept), none does
+  // (a maximum below minus that margin: the pose is skipped) or it takes
+  // the per-point test. The same indices as the per-point test alone.
+  if (!(lo_z > 0.01f)) {
+    for (size_t i = 0; i < cloud.size(); ++i)
+      if (in_view(i, all_poses)) keep.push_back(i);
+    return keep;
+  }
+  constexpr size_t kGroup = 256;
+  // Margins: one pixel in u and v (times z in the affine form), 0.01 m in
+  // z; the float test's rounding is far below both.
+  constexpr double kPixelSlack = 1.0, kDepthSlack = 0.01;
+  std::vector<int> partial;
+  for (size_t g0 = 0; g0 < cloud.size(); g0 += kGroup) {
+    const size_t g1 = std::min(cloud.size(), g0 + kGroup);
+    Eigen::Vector3f lo = cloud.positions[g0], hi = lo;
+    for (size_t i = g0 + 1; i < g1; ++i) {
+      lo = lo.cwiseMin(cloud.positions[i]);
+      hi = hi.cwiseMax(cloud.positions[i]);
+    }
+    if (!lo.allFinite() || !hi.allFinite()) {
+      for (size_t i = g0; i < g1; ++i)
+        if (in_view(i, all_poses)) keep.push_back(i);
+      continue;
+    }
+    const Eigen::Vector3d c = 0.5 * (lo.cast<double>() + hi.cast<double>());
+    const Eigen::Vector3d e = 0.5 * (hi.cast<double>() - lo.cast<double>());
+    bool whole = false;
+    partial.clear();
+    for (size_t t = 0; t < poses.size() && !whole; ++t) {
+      const Eigen::Matrix<double, 3, 4>& md = poses[t].md;
+      // a . p + b over the box: centre value -/+ |a| . e.
+      const auto range = [&](const Eigen::Vector3d& a, double b) {
+        const double mid = a.dot(c) + b, half = a.cwiseAbs().dot(e);
+        return std::make_pair(mid - half, mid + half);
+      };
+      const Eigen::Vector3d az = md.row(2).head<3>().transpose();
+      const double bz = md(2, 3);
+      const Eigen::Vector3d au = md.row(0).head<3>().transpose();
+      const double bu = md(0, 3);
+      const Eigen::Vector3d av = md.row(1).head<3>().transpose();
+      const double bv = md(1, 3);
+      // z - lo_z, hi_z - z, u z - lo_u z, hi_u z - u z, likewise v; the
+      // pixel slack scales with z (at least lo_z on this side of the test).
+      const std::pair<double, double> f[6] = {
+          range(az, bz - lo_z),
+          range(-az, hi_z - bz),
+          range(au - lo_u * az, bu - lo_u * bz),
+          range(hi_u * az - au, hi_u * bz - bu),
+          range(av - lo_v * az, bv - lo_v * bz),
+          range(hi_v * az - av, hi_v * bz - bv)};
+      // The pixel slack times the largest |z| of the box.
+      const std::pair<double, double> z_range = range(az, bz);
+      const double pixel_slack =
+          kPixelSlack *
+          std::max(std::abs(z_range.first), std::abs(z_range.second));
+      bool outside = false, inside = true;
+      for (int j = 0; j < 6; ++j) {
+        const double s = j < 2 ? kDepthSlack : pixel_slack;
+        if (f[j].second < -s) outside = true;
+        if (!(f[j].first > s)) inside = false;
       }
+      if (outside) continue;
+      if (inside) {
+        whole = true;
+      } else {
+        partial.push_back(static_cast<int>(t));
+      }
+    }
+    if (whole) {
+      for (size_t i = g0; i < g1; ++i) keep.push_back(i);
+    } else if (!partial.empty()) {
+      for (size_t i = g0; i < g1; ++i)
+        if (in_view(i, partial)) keep.push_back(i);
     }
   }
   return keep;

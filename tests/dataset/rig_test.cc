@@ -169,11 +169,57 @@ TEST_F(RigSynthetic, EveryCameraAgainstTheTruth) {
   }
 }
 
+// PointsInViewOfAny's documented test, point by point and pose by pose (the
+// reference its culling of groups of points must reproduce).
+std::vector<size_t> InViewReference(const PointCloud& cloud,
+                                    const PinholeCamera& camera,
+                                    const std::vector<Rigid3d>& scene_from_cam,
+                                    double near,
+                                    double far,
+                                    double margin_px) {
+  const float lo_z = static_cast<float>(near) - 1e-3f;
+  const float hi_z = static_cast<float>(far) + 1e-3f;
+  const float m = static_cast<float>(margin_px) + 1.0f;
+  std::vector<Eigen::Matrix<float, 3, 4>> poses;
+  for (const Rigid3d& pose : scene_from_cam)
+    poses.push_back((camera.K() * pose.Inverse().ToMatrix3x4()).cast<float>());
+  std::vector<size_t> out;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector4f p(cloud.positions[i].x(), cloud.positions[i].y(),
+                            cloud.positions[i].z(), 1.0f);
+    for (const Eigen::Matrix<float, 3, 4>& k : poses) {
+      const float z = k.row(2).dot(p);
+      if (!(z > lo_z && z < hi_z)) continue;
+      const float u = k.row(0).dot(p) / z, v = k.row(1).dot(p) / z;
+      if (u > -0.5f - m && u < camera.width - 0.5f + m && v > -0.5f - m &&
+          v < camera.height - 0.5f + m) {
+        out.push_back(i);
+        break;
+      }
+    }
+  }
+  return out;
+}
+
 // The camera's view of the cloud drawn from PointsInViewOfAny's subset is
-// the view drawn from the whole cloud, byte for byte.
+// the view drawn from the whole cloud, byte for byte; the subset is the
+// per-point test's for every camera (whole groups of points kept or skipped
+// per pose where their bounding box is inside or outside the view).
 TEST_F(RigSynthetic, RenderingTheViewSubsetChangesNothing) {
   const DriveClip clip = LoadRigClip();
   const RigScene rig = BuildRig(clip);
+  for (const RigView& v : rig.views) {
+    const PinholeCamera cam = v.source.CameraAt(320, 180, ResizeMode::kResize);
+    for (const double near : {0.1, 0.0}) {
+      const std::vector<size_t> got =
+          PointsInViewOfAny(rig.cloud, cam, v.scene_from_cam, near, 100, 1.5);
+      const std::vector<size_t> want =
+          InViewReference(rig.cloud, cam, v.scene_from_cam, near, 100, 1.5);
+      EXPECT_EQ(got, want) << v.channel << " near " << near;
+      EXPECT_GT(got.size(), 0u) << v.channel;
+      EXPECT_LT(got.size(), rig.cloud.size()) << v.channel;
+    }
+  }
   const RigView& back = rig.views[4];  // CAM_BACK: half the cloud is behind
   RenderOptions ro = PresetRenderOptions(RenderPreset::kFootprint);
   ro.width = 320;
