@@ -591,6 +591,19 @@ NpyArray ParseNpy(const std::string& what,
   return DecodeData(header, std::vector<uint8_t>(begin, begin + nbytes));
 }
 
+NpyArray ParseNpy(const std::string& what,
+                  std::vector<uint8_t>&& bytes,
+                  const NpyReadOptions& options) {
+  const size_t size = bytes.size();
+  const NpyHeader header = ParseHeaderBytes(what, bytes.data(), size, size);
+  const uint64_t nbytes = CheckedByteSize(what, header.shape, header.dtype);
+  CheckDataSize(what, header, nbytes, size - header.data_offset, options);
+  bytes.erase(bytes.begin(),
+              bytes.begin() + static_cast<std::ptrdiff_t>(header.data_offset));
+  bytes.resize(static_cast<size_t>(nbytes));
+  return DecodeData(header, std::move(bytes));
+}
+
 NpyArray ReadNpyAsFloat32(const std::string& path,
                           const NpyReadOptions& options) {
   return ConvertNpyToFloat32(ReadNpy(path, options));

@@ -92,6 +92,11 @@ NpyArray ParseNpy(const std::string& what,
                   const uint8_t* data,
                   size_t size,
                   const NpyReadOptions& options = {});
+// The same, taking the bytes: the array's data stay in their buffer (moved
+// to its front) instead of being copied, for large members.
+NpyArray ParseNpy(const std::string& what,
+                  std::vector<uint8_t>&& bytes,
+                  const NpyReadOptions& options = {});
 
 struct NpyWriteOptions {
   int major_version =

@@ -191,9 +191,9 @@ NpyArray NpzReader::Read(const std::string& key,
       member_size > header.data_offset ? member_size - header.data_offset : 0;
   CheckDeclaredSize(impl_->What(key), "the array", declared, data_size,
                     options.max_bytes);
-  const std::vector<uint8_t> bytes =
-      impl_->ReadMember(key, header.data_offset + declared);
-  return ParseNpy(impl_->What(key), bytes.data(), bytes.size(), options);
+  return ParseNpy(impl_->What(key),
+                  impl_->ReadMember(key, header.data_offset + declared),
+                  options);
 }
 
 NpyArray NpzReader::ReadAsFloat32(const std::string& key,
