@@ -68,8 +68,10 @@ void PrintCloud(const std::string& path,
 // A reconstruction tool's output (geometry/reconstruction.h): what it is and
 // how it is converted.
 void PrintReconstruction(const std::string& path, ReconstructionFormat format) {
-  const auto reader = CreateReconstructionReader(format);
-  const Monst3rFolder r = reader->Read(path, ReconstructionReadOptions());
+  const auto reader = CreateReconstructionReaderFor(format, path);
+  ReconstructionReadOptions options;
+  options.images = false;  // this binary decodes no video (GEN3C's rgb.mp4)
+  const Monst3rFolder r = reader->Read(path, options);
   const PinholeCamera& c = r.cameras().front();
   std::cout << path << ": " << reader->ToolName() << " reconstruction ("
             << ToString(format) << "), " << r.num_frames() << " frames, grid "
@@ -79,7 +81,7 @@ void PrintReconstruction(const std::string& path, ReconstructionFormat format) {
             << "\n"
             << std::fixed << std::setprecision(2) << "  frame 0: fx " << c.fx
             << " fy " << c.fy << " cx " << c.cx << " cy " << c.cy
-            << "; images: " << (r.has_rgb() ? "yes" : "no")
+            << "; images: " << (r.has_rgb() ? "yes" : "none read")
             << "; confidence: " << (r.has_confidence() ? "yes" : "no") << "\n";
   const ReconstructionConventions k = reader->Conventions();
   std::cout << "  poses: " << k.pose << "\n  confidence: " << k.confidence

@@ -88,6 +88,14 @@ std::unique_ptr<ReconstructionReader> CreateReconstructionReader(
   ThrowInputError("reconstruction format", "unknown format");
 }
 
+std::unique_ptr<ReconstructionReader> CreateReconstructionReaderFor(
+    ReconstructionFormat format, const std::string& path) {
+  if (format == ReconstructionFormat::kGenericNpz &&
+      reconstruction::HasGen3cExportFiles(path))
+    return reconstruction::CreateGen3cExportReader();
+  return CreateReconstructionReader(format);
+}
+
 std::optional<ReconstructionFormat> DetectReconstructionFormat(
     const std::string& path) {
   // The generic npz last: its keys are the least specific.

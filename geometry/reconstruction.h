@@ -63,6 +63,10 @@ struct ReconstructionReadOptions {
   // step (the signature of world_from_cam read as cam_from_world on a forward
   // driving clip). Off for footage that truly reverses.
   bool check_motion_direction = true;
+  // Read the images where a format keeps them apart from the arrays (the
+  // GEN3C export's rgb.mp4); false reads depth, poses and intrinsics only
+  // (`geodrive info`, which decodes no video).
+  bool images = true;
   // True when every field is in range.
   bool Check() const;
 };
@@ -115,6 +119,11 @@ ReconstructionVideoDecoder GetReconstructionVideoDecoder();
 
 std::unique_ptr<ReconstructionReader> CreateReconstructionReader(
     ReconstructionFormat format);
+// The reader that reads `path` as `format`: CreateReconstructionReader(format),
+// or the one that reader hands `path` to (a GEN3C export clip folder under
+// kGenericNpz), for its ToolName() and Conventions().
+std::unique_ptr<ReconstructionReader> CreateReconstructionReaderFor(
+    ReconstructionFormat format, const std::string& path);
 // The format of `path` (a file or a folder), or nullopt when none matches.
 std::optional<ReconstructionFormat> DetectReconstructionFormat(
     const std::string& path);

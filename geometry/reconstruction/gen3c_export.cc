@@ -112,15 +112,18 @@ class Gen3cExportReader : public ReconstructionReader {
     const int w = static_cast<int>(dh.shape[2]);
     CheckedHeader(camera_npz, "w2c", t, {4, 4}, "depth.npz");
     CheckedHeader(camera_npz, "intrinsics", t, {3, 3}, "depth.npz");
-    const ReconstructionVideoDecoder decode = GetReconstructionVideoDecoder();
-    GEODRIVE_CHECK_INPUT(decode, dir,
-                         "/rgb.mp4: this program decodes no video (GEN3C "
-                         "export folders are read by build-dataset, render, "
-                         "generate and the Python module)");
     Arrays a;
-    // The video's header is checked against T, W and H before it is decoded;
-    // the arrays' declared sizes against the limit before they are read.
-    a.rgb = decode(dir + "/rgb.mp4", t, w, h);
+    if (options.images) {
+      const ReconstructionVideoDecoder decode = GetReconstructionVideoDecoder();
+      GEODRIVE_CHECK_INPUT(decode, dir,
+                           "/rgb.mp4: this program decodes no video (GEN3C "
+                           "export folders are read by build-dataset, "
+                           "render, generate and the Python module)");
+      // The video's header is checked against T, W and H before it is
+      // decoded; the arrays' declared sizes against the limit before they
+      // are read.
+      a.rgb = decode(dir + "/rgb.mp4", t, w, h);
+    }
     const std::string w2c_what = camera_npz.path() + ": w2c";
     a.depth = FloatMaps(*ReadArray(depth_npz, "depth", options),
                         depth_npz.path() + ": depth", true);

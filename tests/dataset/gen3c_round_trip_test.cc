@@ -216,6 +216,10 @@ TEST(Gen3cRoundTrip, ReaderChecksEveryFileAgainstTheOthers) {
   const Monst3rFolder r =
       ReadReconstruction(ReconstructionFormat::kGenericNpz, root + "/good");
   EXPECT_EQ(r.format(), "GEN3C export");
+  EXPECT_EQ(CreateReconstructionReaderFor(ReconstructionFormat::kGenericNpz,
+                                          root + "/good")
+                ->ToolName(),
+            "GEN3C export");
   EXPECT_EQ(r.units(), "metres");
   EXPECT_EQ(r.grid_resize(), GridResize::kCenterCrop);
   ASSERT_EQ(r.num_frames(), 3);
@@ -262,6 +266,12 @@ TEST(Gen3cRoundTrip, ReaderChecksEveryFileAgainstTheOthers) {
   EXPECT_EQ(DetectReconstructionFormat(root + "/long"), std::nullopt);
   SetReconstructionVideoDecoder(nullptr);
   ExpectError(root + "/good", "rgb.mp4: this program decodes no video");
+  ReconstructionReadOptions no_images;  // what `geodrive info` reads
+  no_images.images = false;
+  const Monst3rFolder arrays = ReadReconstruction(
+      ReconstructionFormat::kGenericNpz, root + "/good", no_images);
+  EXPECT_EQ(arrays.num_frames(), 3);
+  EXPECT_FALSE(arrays.has_rgb());
   SetReconstructionVideoDecoder(ReadVideoFramesExactly);
 }
 
