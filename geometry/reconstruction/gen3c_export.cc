@@ -45,7 +45,8 @@ std::string Shape(const std::vector<int64_t>& shape) {
 }
 
 // The header of `key` in `npz`: float32 of shape (frames, rest...), where
-// `frames` < 0 takes the array's own count.
+// `frames` < 0 takes the array's own count and a `rest` side < 0 any size
+// (H, W); `other` names the file `frames` comes from.
 NpyHeader CheckedHeader(const NpzReader& npz,
                         const std::string& key,
                         int64_t frames,
@@ -60,7 +61,9 @@ NpyHeader CheckedHeader(const NpzReader& npz,
   for (size_t i = 0; ok && i < rest.size(); ++i)
     ok = rest[i] < 0 ? h.shape[i + 1] >= 1 : h.shape[i + 1] == rest[i];
   std::string want = "(T";
-  for (int64_t r : rest) want += r < 0 ? ", ?" : ", " + std::to_string(r);
+  for (size_t i = 0; i < rest.size(); ++i)
+    want += rest[i] >= 0 ? ", " + std::to_string(rest[i])
+                         : std::string(i == 0 ? ", H" : ", W");
   GEODRIVE_CHECK_INPUT(ok, what, ": shape ", Shape(h.shape), ", expected ",
                        want, ")");
   GEODRIVE_CHECK_INPUT(frames < 0 || h.shape[0] == frames, what, " has ",
