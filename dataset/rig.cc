@@ -197,6 +197,20 @@ RigScene FuseRigScenes(const DriveClip& clip,
   return rig;
 }
 
+bool PointGroupBounds(const PointCloud& cloud,
+                      size_t begin,
+                      size_t end,
+                      Eigen::Vector3f* lo,
+                      Eigen::Vector3f* hi) {
+  *lo = cloud.positions[begin];
+  *hi = *lo;
+  for (size_t i = begin + 1; i < end; ++i) {
+    *lo = lo->cwiseMin(cloud.positions[i]);
+    *hi = hi->cwiseMax(cloud.positions[i]);
+  }
+  return lo->allFinite() && hi->allFinite();
+}
+
 std::vector<size_t> PointsInViewOfAny(
     const PointCloud& cloud,
     const PinholeCamera& camera,
@@ -261,12 +275,8 @@ std::vector<size_t> PointsInViewOfAny(
   std::vector<int> partial;
   for (size_t g0 = 0; g0 < cloud.size(); g0 += kGroup) {
     const size_t g1 = std::min(cloud.size(), g0 + kGroup);
-    Eigen::Vector3f lo = cloud.positions[g0], hi = lo;
-    for (size_t i = g0 + 1; i < g1; ++i) {
-      lo = lo.cwiseMin(cloud.positions[i]);
-      hi = hi.cwiseMax(cloud.positions[i]);
-    }
-    if (!lo.allFinite() || !hi.allFinite()) {
+    Eigen::Vector3f lo, hi;
+    if (!PointGroupBounds(cloud, g0, g1, &lo, &hi)) {
       for (size_t i = g0; i < g1; ++i)
         if (in_view(i, all_poses)) keep.push_back(i);
       continue;

@@ -89,6 +89,15 @@ std::vector<size_t> PointsInViewOfAny(
     double far,
     double margin_px);
 
+// Bounding box of the points [begin, end) of `cloud` (begin < end); false when
+// a coordinate is not finite (lo and hi are then not a box). The rig tests
+// groups of consecutive points by it before their points one by one.
+bool PointGroupBounds(const PointCloud& cloud,
+                      size_t begin,
+                      size_t end,
+                      Eigen::Vector3f* lo,
+                      Eigen::Vector3f* hi);
+
 // The rig's poses along an edited reference trajectory: per frame the world
 // side motion D(i) = edited_reference[i] * inverse(reference[i]) of the
 // reference camera is applied to every camera, scene_from_cam'[k][i] = D(i) *

@@ -122,12 +122,8 @@ std::vector<size_t> WithPointsInBoxes(const PointCloud& cloud,
   constexpr size_t kGroup = 256;
   for (size_t g0 = 0; g0 < cloud.size(); g0 += kGroup) {
     const size_t g1 = std::min(cloud.size(), g0 + kGroup);
-    Eigen::Vector3f lo = cloud.positions[g0], hi = lo;
-    for (size_t i = g0 + 1; i < g1; ++i) {
-      lo = lo.cwiseMin(cloud.positions[i]);
-      hi = hi.cwiseMax(cloud.positions[i]);
-    }
-    bool near_a_box = !lo.allFinite() || !hi.allFinite();
+    Eigen::Vector3f lo, hi;
+    bool near_a_box = !PointGroupBounds(cloud, g0, g1, &lo, &hi);
     for (size_t b = 0; b < frame0.size() && !near_a_box; ++b) {
       const Eigen::Vector3d& c = frame0[b].center;
       const Eigen::Vector3d d =
