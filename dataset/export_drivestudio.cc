@@ -5,7 +5,8 @@
 // clip, PAIR/drivestudio/ (linked as OUT/drivestudio/%03d, the clips in name
 // order, OUT/drivestudio/scenes.json mapping "%03d" to the clip id):
 //
-//   images/%03d_0.jpg        the camera frames at 1600x900 (RGB JPEG)
+//   images/%03d_0.jpg        the camera frames at 1600x900 (RGB JPEG; the
+//                            source JPEG's bytes when it is 1600x900)
 //   extrinsics/%03d_0.txt    4x4 world_from_cam, OpenCV axes, per frame
 //                            (nuscenes_sourceloader.py:102-111)
 //   intrinsics/0.txt         fx fy cx cy k1 k2 p1 p2 k3 at 1600x900, no
@@ -14,12 +15,13 @@
 //                            count (:359-377)
 //   lidar/%03d.bin           float32 x, y, z, intensity in the LiDAR's frame,
 //                            the sweep nearest the frame (:392-406)
-//   sky_masks/%03d_0.png     0/255: a pixel whose ray points above the
-//                            horizon, within the LiDAR's vertical field of
-//                            view, above every LiDAR return of the frame and
-//                            condition point drawn in its column (SkyMask)
+//   sky_masks/%03d_0.png     1-bit gray (0/255 read as "L"): a pixel whose
+//                            ray points above the horizon, within the
+//                            LiDAR's vertical field of view, above every
+//                            LiDAR return of the frame and point of the
+//                            clip's scene in its column (SkyMask)
 //   dynamic_masks/{all,human,vehicle}/%03d_0.png
-//                            0/255: the axis-aligned 2D box of each projected
+//                            1-bit gray: the axis-aligned 2D box of each projected
 //                            3D box wholly in front (z > 0.1) and inside the
 //                            image, as nuscenes_preprocess.py:633-687 draws it
 //   instances/instances_info.json, frame_instances.json
@@ -45,6 +47,7 @@
 #include "dataset/internal/pair_png.h"
 #include "dataset/pairs.h"
 #include "geometry/image_io.h"
+#include "geometry/point_cloud.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
@@ -111,66 +114,106 @@ std::string MatrixText(const Rigid3d& pose) {
   return text;
 }
 
-// The image area one LiDAR return stands for: +-0.5 degrees of azimuth
-// (spinning LiDARs step 0.1-0.5 degrees) and 1.5 degrees above it (a ring's
-// spacing: 1.33 degrees for nuScenes' 32 rings), so that what lies between
-// the highest ring that hits and the next is not called sky.
+// The image area one LiDAR return or scene point stands for: +-0.5 degrees
+// of azimuth (spinning LiDARs step 0.1-0.5 degrees) and 1.5 degrees above it
+// (a ring's spacing: 1.33 degrees for nuScenes' 32 rings), so that what lies
+// between the highest ring that hits and the next is not called sky.
 constexpr double kReturnHalfWidthRad = 0.5 * M_PI / 180;
 constexpr double kReturnRiseRad = 1.5 * M_PI / 180;
+
+// Lowers top[x] to the row of each point of `xyz` (`stride` floats a point,
+// x, y, z first) in `cam_from_points`' camera that lands in column x: the
+// highest point of every column, before the +-0.5 degree widening.
+void LowerColumnTops(const float* xyz,
+                     size_t count,
+                     size_t stride,
+                     const Rigid3d& cam_from_points,
+                     const PinholeCamera& cam,
+                     int width,
+                     int height,
+                     std::vector<int>* top) {
+  const Eigen::Matrix3f r =
+      cam_from_points.rotation.toRotationMatrix().cast<float>();
+  const Eigen::Vector3f t = cam_from_points.translation.cast<float>();
+  const float fx = static_cast<float>(cam.fx), cx = static_cast<float>(cam.cx);
+  const float fy = static_cast<float>(cam.fy), cy = static_cast<float>(cam.cy);
+  for (size_t i = 0; i < count; ++i) {
+    const Eigen::Vector3f c =
+        r * Eigen::Map<const Eigen::Vector3f>(xyz + i * stride) + t;
+    if (!(c.z() > 0.1f)) continue;
+    const float u = fx * c.x() / c.z() + cx;
+    const float v = fy * c.y() / c.z() + cy;
+    if (!(u >= 0 && u < width && v < height)) continue;
+    const int ui = static_cast<int>(u);
+    const int vi = v < 0 ? -1 : static_cast<int>(v);
+    (*top)[ui] = std::min((*top)[ui], vi);
+  }
+}
 
 // Sky: the pixel's ray points above the horizon (a positive component along
 // the world's up), within the LiDAR's vertical field of view (no higher than
 // its highest return of the sweep, seen from the sensor), and above
-// everything in its column: every return of the frame's sweep (each standing
-// for +-0.5 degrees of azimuth and 1.5 degrees up) and every condition point
-// drawn. What lies
-// above the LiDAR's reach is not called sky (unknown).
+// everything in its column: every return of the frame's sweep and every point
+// of the clip's scene (`scene`, in world_from_cam's frame), each standing for
+// +-0.5 degrees of azimuth and 1.5 degrees up. What lies above the LiDAR's
+// reach is not called sky (unknown).
 cv::Mat SkyMask(const PinholeCamera& cam,
                 const Rigid3d& world_from_cam,
                 const Eigen::Vector3d& world_up,
-                const cv::Mat& drawn,
-                const ExportSweep& sweep) {
-  const int w = drawn.cols, h = drawn.rows;
-  std::vector<int> top(w, h);
-  for (int x = 0; x < w; ++x) {  // the highest drawn pixel of each column
-    int y = 0;
-    while (y < h && drawn.at<uint8_t>(y, x) == 0) ++y;
-    top[x] = y;
+                const PointCloud* scene,
+                const ExportSweep& sweep,
+                int w,
+                int h) {
+  const Rigid3d cam_from_world = world_from_cam.Inverse();
+  const Rigid3d cam_from_sensor = cam_from_world * sweep.world_from_sensor;
+  std::vector<int> column(w, h);  // the highest point of each column
+  LowerColumnTops(sweep.xyzi.data(), sweep.size(), 4, cam_from_sensor, cam, w,
+                  h, &column);
+  if (scene != nullptr && !scene->empty()) {
+    LowerColumnTops(scene->positions.front().data(), scene->size(),
+                    sizeof(Eigen::Vector3f) / sizeof(float), cam_from_world,
+                    cam, w, h, &column);
   }
-  const Rigid3d cam_from_sensor =
-      world_from_cam.Inverse() * sweep.world_from_sensor;
   const int half_px =
       static_cast<int>(std::ceil(cam.fx * std::tan(kReturnHalfWidthRad)));
   const int rise_px =
       static_cast<int>(std::ceil(cam.fy * std::tan(kReturnRiseRad)));
+  std::vector<int> top(w, h);  // column tops widened by +-half_px, raised
+  for (int x = 0; x < w; ++x) {
+    for (int k = std::max(0, x - half_px); k <= std::min(w - 1, x + half_px);
+         ++k) {
+      if (column[k] < h) top[x] = std::min(top[x], column[k] - rise_px);
+    }
+  }
   double max_elevation = -M_PI / 2;
   for (size_t i = 0; i < sweep.size(); ++i) {
     const float* p = &sweep.xyzi[4 * i];
-    const Eigen::Vector3d s(p[0], p[1], p[2]);
     max_elevation =
-        std::max(max_elevation, std::atan2(s.z(), std::hypot(s.x(), s.y())));
-    const Eigen::Vector3d c = cam_from_sensor * s;
-    if (!(c.z() > 0.1)) continue;
-    const double u = cam.fx * c.x() / c.z() + cam.cx;
-    const double v = cam.fy * c.y() / c.z() + cam.cy;
-    if (!(u >= 0 && u < w && v >= 0 && v < h)) continue;
-    const int ui = static_cast<int>(u), vi = static_cast<int>(v) - rise_px;
-    for (int x = std::max(0, ui - half_px); x <= std::min(w - 1, ui + half_px);
-         ++x)
-      top[x] = std::min(top[x], vi);
+        std::max(max_elevation, std::atan2(static_cast<double>(p[2]),
+                                           std::hypot(p[0], p[1])));
   }
+  // Elevation e of a sensor-frame direction d: atan2(d.z, |d.xy|) <= max
+  // <=> d.z <= tan(max) |d.xy| (|d.xy| >= 0; max in [-90, 90) degrees).
+  const double tan_max = std::tan(std::min(max_elevation, M_PI / 2 - 1e-9));
   const Eigen::Vector3d up = world_from_cam.rotation.inverse() * world_up;
   const Eigen::Matrix3d sensor_from_cam =
       cam_from_sensor.rotation.inverse().toRotationMatrix();
-  cv::Mat sky(drawn.size(), CV_8U, cv::Scalar(0));
-  for (int x = 0; x < w; ++x) {
-    for (int y = 0; y < top[x]; ++y) {
-      const Eigen::Vector3d ray((x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy,
-                                1.0);
-      if (!(ray.dot(up) > 0)) continue;
-      const Eigen::Vector3d d = sensor_from_cam * ray;
-      if (std::atan2(d.z(), std::hypot(d.x(), d.y())) > max_elevation) continue;
-      sky.at<uint8_t>(y, x) = 255;
+  // Along a row, the ray (x - cx) / fx, (y - cy) / fy, 1 and its sensor-frame
+  // direction d change linearly with x.
+  const Eigen::Vector3d ray_dx(1.0 / cam.fx, 0, 0);
+  const Eigen::Vector3d d_dx = sensor_from_cam * ray_dx;
+  const double up_dx = ray_dx.dot(up);
+  cv::Mat sky(h, w, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < h; ++y) {
+    uint8_t* row = sky.ptr<uint8_t>(y);
+    const Eigen::Vector3d ray0(-cam.cx / cam.fx, (y - cam.cy) / cam.fy, 1.0);
+    const Eigen::Vector3d d0 = sensor_from_cam * ray0;
+    const double up0 = ray0.dot(up);
+    for (int x = 0; x < w; ++x) {
+      if (y >= top[x] || !(up0 + x * up_dx > 0)) continue;
+      const Eigen::Vector3d d = d0 + x * d_dx;
+      if (d.z() > tan_max * std::sqrt(d.x() * d.x() + d.y() * d.y())) continue;
+      row[x] = 255;
     }
   }
   return sky;
@@ -236,6 +279,23 @@ void WriteInstances(const std::string& dir, const ExportClip& clip) {
   WriteFileAtomic(dir + "/frame_instances.json", frames.dump() + "\n");
 }
 
+// Frame t's image as a JPEG: the source file's bytes when the frame is the
+// source image unchanged and that is a JPEG stored upright (no second lossy
+// encode, and no CPU), else encoded at quality 95.
+void WriteImage(const std::string& path, const ExportClip& clip, int t) {
+  if (clip.images_are_source &&
+      static_cast<int>(clip.image_paths.size()) > t) {
+    const ImageFile file = ReadImageFile(clip.image_paths[t]);
+    const ImageHeader header = ReadImageHeader(file);
+    if (header.jpeg && header.orientation == 1 &&
+        header.size == cv::Size(kWidth, kHeight)) {
+      WriteFileAtomic(path, file.bytes.data(), file.bytes.size());
+      return;
+    }
+  }
+  WriteJpeg(path, (*clip.images)[t], kJpegQuality);
+}
+
 // The LiDAR sweep as float32 (N,4) x, y, z, intensity.
 void WriteLidar(const std::string& path, const ExportSweep& sweep) {
   WriteFileAtomic(path, sweep.xyzi.data(), sweep.xyzi.size() * sizeof(float));
@@ -249,7 +309,7 @@ class DrivestudioExporter : public Exporter {
     ExportRequirements req;
     req.width = kWidth;
     req.height = kHeight;
-    req.depth = true;  // the drawn masks, for the sky masks
+    req.condition = false;  // no condition: the sky rule projects the scene
     req.lidar_frame_step = 1;
     req.objects = true;
     return req;
@@ -268,13 +328,13 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
   const int n = static_cast<int>(clip.images->size());
   CheckClip(clip.clip_id, n);
   GEODRIVE_CHECK_INPUT(
-      clip.lidar && clip.objects && clip.drawn &&
+      clip.lidar && clip.objects &&
           static_cast<int>(clip.lidar->size()) == n &&
           static_cast<int>(clip.objects->size()) == n &&
           static_cast<int>(clip.world_from_cam.size()) == n,
       clip.clip_id,
-      ": drivestudio needs a pose, a LiDAR sweep, the objects and the drawn "
-      "mask of every frame");
+      ": drivestudio needs a pose, a LiDAR sweep and the objects of every "
+      "frame");
   const std::string dir = pair_dir + "/" + kFolder;
   for (const char* sub :
        {"images", "extrinsics", "intrinsics", "lidar_pose", "lidar",
@@ -289,21 +349,20 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
   WriteFileAtomic(dir + "/intrinsics/" + cam_id + ".txt", k);
   for (int t = 0; t < n; ++t) {
     const cv::Mat& image = (*clip.images)[t];
-    GEODRIVE_CHECK_INPUT(image.size() == cv::Size(kWidth, kHeight) &&
-                             (*clip.drawn)[t].size() == image.size(),
+    GEODRIVE_CHECK_INPUT(image.size() == cv::Size(kWidth, kHeight),
                          clip.clip_id, ": drivestudio needs frames at ", kWidth,
                          "x", kHeight, ", got ", image.cols, "x", image.rows);
     const std::string name = Frame(t) + "_" + cam_id;
-    WriteJpeg(dir + "/images/" + name + ".jpg", image, kJpegQuality);
+    WriteImage(dir + "/images/" + name + ".jpg", clip, t);
     WriteFileAtomic(dir + "/extrinsics/" + name + ".txt",
                     MatrixText(clip.world_from_cam[t]));
     const ExportSweep& sweep = (*clip.lidar)[t];
     WriteFileAtomic(dir + "/lidar_pose/" + Frame(t) + ".txt",
                     MatrixText(sweep.world_from_sensor));
     WriteLidar(dir + "/lidar/" + Frame(t) + ".bin", sweep);
-    WritePairPng(dir + "/sky_masks/" + name + ".png",
+    WriteMaskPng(dir + "/sky_masks/" + name + ".png",
                  SkyMask(cam, clip.world_from_cam[t], clip.world_up,
-                         (*clip.drawn)[t], sweep));
+                         clip.scene_cloud, sweep, kWidth, kHeight));
     const Rigid3d cam_from_world = clip.world_from_cam[t].Inverse();
     cv::Mat human(kHeight, kWidth, CV_8U, cv::Scalar(0));
     cv::Mat vehicle = human.clone();
@@ -312,9 +371,9 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
       if (In(kRigid, o.category)) DrawBox(o, cam, cam_from_world, &vehicle);
     }
     const std::string masks = dir + "/dynamic_masks/";
-    WritePairPng(masks + "all/" + name + ".png", human | vehicle);
-    WritePairPng(masks + "human/" + name + ".png", human);
-    WritePairPng(masks + "vehicle/" + name + ".png", vehicle);
+    WriteMaskPng(masks + "all/" + name + ".png", human | vehicle);
+    WriteMaskPng(masks + "human/" + name + ".png", human);
+    WriteMaskPng(masks + "vehicle/" + name + ".png", vehicle);
   }
   WriteInstances(dir + "/instances", clip);
   meta->files[kFolder] = kFolder;

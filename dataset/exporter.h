@@ -26,6 +26,7 @@ namespace geodrive {
 
 struct BoxSequences;
 struct PairMeta;
+struct PointCloud;
 
 // The formats written beside our pairs.
 enum class ExportFormat {
@@ -73,6 +74,10 @@ struct ExportRequirements {
   // Frame rate the trainer assumes (Hz; 0 = any). Informative: clips are not
   // resampled.
   double fps = 0;
+  // The condition rendered at the exporter's size (ExportClip::condition);
+  // false for an exporter that writes the frames but no condition (with
+  // width x height other than the pair's, nothing is then rendered for it).
+  bool condition = true;
   // Per-frame condition z-depth and drawn mask (ExportClip::depth, ::drawn).
   bool depth = false;
   // The renderer's frames before the resize to the pair's size
@@ -148,8 +153,17 @@ struct ExportClip {
   // ExportRequirements::frames is false).
   const std::vector<cv::Mat>* images = nullptr;
   // Condition frames (RGB CV_8UC3, black where nothing was drawn), same size
-  // (null when ExportRequirements::frames is false).
+  // (null when ExportRequirements::frames or ::condition is false).
   const std::vector<cv::Mat>* condition = nullptr;
+  // Each frame's source image (DriveFrame::image_path: a file, or an image
+  // inside a container that ReadImageFile resolves).
+  std::vector<std::string> image_paths;
+  // True when `images` are the source images unchanged (the exporter's size
+  // is the source's, nothing cropped): an exporter may then copy a source
+  // JPEG's bytes (ReadImageFile) instead of encoding the frame again.
+  bool images_are_source = false;
+  // The clip's condition scene, in the same frame as world_from_cam.
+  const PointCloud* scene_cloud = nullptr;
   // With ExportRequirements::depth: the condition's z-depth per frame
   // (CV_32F, the scene's units, 0 = no point) and drawn mask (CV_8U, 255 = a
   // point was drawn); null otherwise.

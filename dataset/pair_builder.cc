@@ -569,6 +569,34 @@ bool AtPairSize(const ExportRequirements& req, const BuildDatasetOptions& opt) {
 
 }  // namespace
 
+ClipFrames ExportFrames(const DriveClip& clip,
+                        const ClipFrames& pair,
+                        const BuildDatasetOptions& eopt) {
+  const PinholeCamera& cam = clip.frames.front().camera;
+  const ImageResizeSpec spec = OutputSpec(cam, eopt);
+  ClipFrames out;
+  out.first_frame_path = pair.first_frame_path;
+  out.gt.resize(clip.frames.size());
+  for (size_t i = 0; i < clip.frames.size(); ++i) {
+    if (i < pair.full.size()) {
+      const bool unchanged = spec.resized_width == cam.width &&
+                             spec.resized_height == cam.height &&
+                             spec.width == cam.width &&
+                             spec.height == cam.height;
+      // The pair's own decode, shared (exporters only read it).
+      out.gt[i] = unchanged ? pair.full[i] : FullFrameToOutput(pair.full[i], spec);
+      continue;
+    }
+    const std::string& path = clip.frames[i].image_path;
+    const cv::Mat full = ReadImageRgb(path);
+    GEODRIVE_CHECK_INPUT(full.cols == cam.width && full.rows == cam.height,
+                         path, ": image is ", full.cols, "x", full.rows,
+                         " but the dataset says ", cam.width, "x", cam.height);
+    out.gt[i] = FullFrameToOutput(full, spec);
+  }
+  return out;
+}
+
 RenderKeep ExportRenderKeep(const ClipContext& ctx,
                             const BuildDatasetOptions& opt) {
   RenderKeep keep;
@@ -643,17 +671,22 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
       eopt.width = req.width;
       eopt.height = req.height;
       eopt.resize_mode = ResizeMode::kCenterCrop;
-      x->frames = ReadClipFrames(clip, eopt, 0);
-      x->frames.first_frame_path = frames.first_frame_path;
+      x->frames = ExportFrames(clip, frames, eopt);
       x->boxes = ClipVehicleBoxes(clip, scene.metric(), eopt);
-      RenderKeep keep;
-      keep.depth = req.depth;
-      x->cond = RenderCondition(scene, x->boxes, x->frames.gt, eopt, keep);
       f = &x->frames;
-      c = &x->cond;
       b = &x->boxes;
+      c = nullptr;
+      if (req.condition) {
+        RenderKeep keep;
+        keep.depth = req.depth;
+        x->cond = RenderCondition(scene, x->boxes, x->frames.gt, eopt, keep);
+        c = &x->cond;
+      }
     }
     ExportClip& ec = x->clip;
+    const PinholeCamera& source = clip.frames.front().camera;
+    ec.images_are_source = f != nullptr && eopt.width == source.width &&
+                           eopt.height == source.height;
     ec.clip_id = clip.id;
     ec.scene_name = clip.scene_name;
     if (ctx.clip_index) {
@@ -661,6 +694,9 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
       if (it != ctx.clip_index->end()) ec.clip_index = it->second;
     }
     if (f) ec.images = &f->gt;
+    for (const DriveFrame& df : clip.frames)
+      ec.image_paths.push_back(df.image_path);
+    ec.scene_cloud = &scene.cloud;
     if (c) ec.condition = &c->frames;
     if (req.depth && c) {
       ec.depth = &c->depth;

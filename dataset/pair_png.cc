@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 #include <memory>
+#include <vector>
 
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
@@ -20,11 +21,14 @@ struct SpngFree {
 
 }  // namespace
 
-void WritePairPng(const std::string& path, const cv::Mat& rgb) {
-  GEODRIVE_CHECK_INPUT(
-      !rgb.empty() && (rgb.type() == CV_8UC3 || rgb.type() == CV_8UC1), path,
-      ": expected a non-empty RGB (CV_8UC3) or gray (CV_8UC1) image");
-  const cv::Mat data = rgb.isContinuous() ? rgb : rgb.clone();
+namespace {
+
+// Encodes `rows` (packed as `ihdr` says) with the pair's PNG settings.
+void EncodePng(const std::string& path,
+               const spng_ihdr& ihdr,
+               const void* rows,
+               size_t bytes,
+               int filter) {
   std::unique_ptr<spng_ctx, SpngFree> ctx(spng_ctx_new(SPNG_CTX_ENCODER));
   GEODRIVE_CHECK_INPUT(ctx != nullptr, path,
                        ": cannot start libspng (out of memory)");
@@ -36,17 +40,11 @@ void WritePairPng(const std::string& path, const cv::Mat& rgb) {
   check(spng_set_option(ctx.get(), SPNG_ENCODE_TO_BUFFER, 1));
   check(spng_set_option(ctx.get(), SPNG_IMG_COMPRESSION_LEVEL, 1));
   check(spng_set_option(ctx.get(), SPNG_IMG_COMPRESSION_STRATEGY, Z_RLE));
-  check(
-      spng_set_option(ctx.get(), SPNG_FILTER_CHOICE, SPNG_FILTER_CHOICE_PAETH));
-  spng_ihdr ihdr{};
-  ihdr.width = static_cast<uint32_t>(data.cols);
-  ihdr.height = static_cast<uint32_t>(data.rows);
-  ihdr.bit_depth = 8;
-  ihdr.color_type = data.channels() == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
-                                         : SPNG_COLOR_TYPE_GRAYSCALE;
-  check(spng_set_ihdr(ctx.get(), &ihdr));
-  check(spng_encode_image(ctx.get(), data.data, data.total() * data.elemSize(),
-                          SPNG_FMT_PNG, SPNG_ENCODE_FINALIZE));
+  check(spng_set_option(ctx.get(), SPNG_FILTER_CHOICE, filter));
+  spng_ihdr header = ihdr;
+  check(spng_set_ihdr(ctx.get(), &header));
+  check(spng_encode_image(ctx.get(), rows, bytes, SPNG_FMT_PNG,
+                          SPNG_ENCODE_FINALIZE));
   size_t size = 0;
   int err = 0;
   std::unique_ptr<void, SpngFree> png(
@@ -54,6 +52,52 @@ void WritePairPng(const std::string& path, const cv::Mat& rgb) {
   check(err);
   GEODRIVE_CHECK_INPUT(png != nullptr, path, ": libspng returned no PNG");
   WriteFileAtomic(path, png.get(), size);
+}
+
+}  // namespace
+
+void WritePairPng(const std::string& path, const cv::Mat& rgb) {
+  GEODRIVE_CHECK_INPUT(
+      !rgb.empty() && (rgb.type() == CV_8UC3 || rgb.type() == CV_8UC1), path,
+      ": expected a non-empty RGB (CV_8UC3) or gray (CV_8UC1) image");
+  const cv::Mat data = rgb.isContinuous() ? rgb : rgb.clone();
+  spng_ihdr ihdr{};
+  ihdr.width = static_cast<uint32_t>(data.cols);
+  ihdr.height = static_cast<uint32_t>(data.rows);
+  ihdr.bit_depth = 8;
+  ihdr.color_type = data.channels() == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
+                                         : SPNG_COLOR_TYPE_GRAYSCALE;
+  EncodePng(path, ihdr, data.data, data.total() * data.elemSize(),
+            SPNG_FILTER_CHOICE_PAETH);
+}
+
+void WriteMaskPng(const std::string& path, const cv::Mat& mask) {
+  GEODRIVE_CHECK_INPUT(!mask.empty() && mask.type() == CV_8UC1, path,
+                       ": expected a non-empty mask (CV_8UC1)");
+  const int w = mask.cols, stride = (w + 7) / 8;
+  std::vector<uint8_t> rows(static_cast<size_t>(stride) * mask.rows, 0);
+  for (int y = 0; y < mask.rows; ++y) {
+    const uint8_t* in = mask.ptr<uint8_t>(y);
+    uint8_t* out = &rows[static_cast<size_t>(y) * stride];
+    // Most significant bit first (PNG); eight pixels a byte, unrolled.
+    int x = 0;
+    for (; x + 8 <= w; x += 8) {
+      const uint8_t* p = in + x;
+      out[x >> 3] = static_cast<uint8_t>(
+          (p[0] != 0) << 7 | (p[1] != 0) << 6 | (p[2] != 0) << 5 |
+          (p[3] != 0) << 4 | (p[4] != 0) << 3 | (p[5] != 0) << 2 |
+          (p[6] != 0) << 1 | (p[7] != 0));
+    }
+    for (; x < w; ++x)
+      out[x >> 3] |= static_cast<uint8_t>((in[x] != 0) << (7 - (x & 7)));
+  }
+  spng_ihdr ihdr{};
+  ihdr.width = static_cast<uint32_t>(w);
+  ihdr.height = static_cast<uint32_t>(mask.rows);
+  ihdr.bit_depth = 1;
+  ihdr.color_type = SPNG_COLOR_TYPE_GRAYSCALE;
+  // Filters gain nothing on runs of whole bytes; none is the fastest.
+  EncodePng(path, ihdr, rows.data(), rows.size(), SPNG_DISABLE_FILTERING);
 }
 
 }  // namespace internal

@@ -258,6 +258,14 @@ struct ClipExport {
 // Checks the clip against every exporter's requirements (the error names the
 // first unmet one).
 void CheckClipForExports(const ClipContext& ctx, const DriveClip& clip);
+// The clip's frames at an exporter's size (`eopt`'s), resized from full-size
+// decodes: the pair's own (ClipFrames::full: every frame for the LiDAR scene
+// sources) where it holds them, else each read here. Always the full decode
+// (FullFrameToOutput), never the pair's DCT-scaled one, so an export's
+// pixels do not depend on the scene source.
+ClipFrames ExportFrames(const DriveClip& clip,
+                        const ClipFrames& pair,
+                        const BuildDatasetOptions& eopt);
 // What the pair's render must keep for the exporters served at its size.
 RenderKeep ExportRenderKeep(const ClipContext& ctx,
                             const BuildDatasetOptions& options);

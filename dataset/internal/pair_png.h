@@ -19,6 +19,10 @@ namespace internal {
 // as 8-bit gray), atomically (WriteFileAtomic). Throws InputError naming
 // `path` on failure.
 void WritePairPng(const std::string& path, const cv::Mat& rgb);
+// Writes a mask (CV_8UC1, nonzero = set) as a 1-bit gray PNG, atomically:
+// an eighth of the bytes to deflate. Readers expand 1-bit gray to 0/255
+// (libpng and OpenCV with expand, PIL's convert("L"), libspng's G8).
+void WriteMaskPng(const std::string& path, const cv::Mat& mask);
 
 }  // namespace internal
 }  // namespace geodrive
