@@ -21,9 +21,10 @@
 //                            LiDAR return of the frame and point of the
 //                            clip's scene in its column (SkyMask)
 //   dynamic_masks/{all,human,vehicle}/%03d_0.png
-//                            1-bit gray: the axis-aligned 2D box of each projected
-//                            3D box wholly in front (z > 0.1) and inside the
-//                            image, as nuscenes_preprocess.py:633-687 draws it
+//                            1-bit gray: the axis-aligned 2D box of each
+//                            projected 3D box wholly in front (z > 0.1) and
+//                            inside the image, as
+//                            nuscenes_preprocess.py:633-687 draws it
 //   instances/instances_info.json, frame_instances.json
 //                            the boxes of the 18 categories drivestudio models
 //                            (OBJECT_CLASS_NODE_MAPPING, :21-45), ids
@@ -39,6 +40,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 
@@ -185,16 +187,21 @@ cv::Mat SkyMask(const PinholeCamera& cam,
       if (column[k] < h) top[x] = std::min(top[x], column[k] - rise_px);
     }
   }
-  double max_elevation = -M_PI / 2;
+  // The sweep's highest return seen from the sensor, as the tangent of its
+  // elevation, z / |xy| (monotonic in the elevation; a return straight up
+  // counts as the largest finite tangent). A direction d lies no higher
+  // <=> d.z <= tan_max |d.xy|.
+  double tan_max = -std::numeric_limits<double>::max();
   for (size_t i = 0; i < sweep.size(); ++i) {
     const float* p = &sweep.xyzi[4 * i];
-    max_elevation =
-        std::max(max_elevation, std::atan2(static_cast<double>(p[2]),
-                                           std::hypot(p[0], p[1])));
+    const double xy = std::sqrt(static_cast<double>(p[0]) * p[0] +
+                                static_cast<double>(p[1]) * p[1]);
+    const double tan = xy > 0
+                           ? p[2] / xy
+                           : std::copysign(std::numeric_limits<double>::max(),
+                                           static_cast<double>(p[2]));
+    tan_max = std::max(tan_max, tan);
   }
-  // Elevation e of a sensor-frame direction d: atan2(d.z, |d.xy|) <= max
-  // <=> d.z <= tan(max) |d.xy| (|d.xy| >= 0; max in [-90, 90) degrees).
-  const double tan_max = std::tan(std::min(max_elevation, M_PI / 2 - 1e-9));
   const Eigen::Vector3d up = world_from_cam.rotation.inverse() * world_up;
   const Eigen::Matrix3d sensor_from_cam =
       cam_from_sensor.rotation.inverse().toRotationMatrix();
@@ -283,8 +290,7 @@ void WriteInstances(const std::string& dir, const ExportClip& clip) {
 // source image unchanged and that is a JPEG stored upright (no second lossy
 // encode, and no CPU), else encoded at quality 95.
 void WriteImage(const std::string& path, const ExportClip& clip, int t) {
-  if (clip.images_are_source &&
-      static_cast<int>(clip.image_paths.size()) > t) {
+  if (clip.images_are_source && static_cast<int>(clip.image_paths.size()) > t) {
     const ImageFile file = ReadImageFile(clip.image_paths[t]);
     const ImageHeader header = ReadImageHeader(file);
     if (header.jpeg && header.orientation == 1 &&
@@ -328,8 +334,7 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
   const int n = static_cast<int>(clip.images->size());
   CheckClip(clip.clip_id, n);
   GEODRIVE_CHECK_INPUT(
-      clip.lidar && clip.objects &&
-          static_cast<int>(clip.lidar->size()) == n &&
+      clip.lidar && clip.objects && static_cast<int>(clip.lidar->size()) == n &&
           static_cast<int>(clip.objects->size()) == n &&
           static_cast<int>(clip.world_from_cam.size()) == n,
       clip.clip_id,

@@ -584,7 +584,8 @@ ClipFrames ExportFrames(const DriveClip& clip,
                              spec.width == cam.width &&
                              spec.height == cam.height;
       // The pair's own decode, shared (exporters only read it).
-      out.gt[i] = unchanged ? pair.full[i] : FullFrameToOutput(pair.full[i], spec);
+      out.gt[i] =
+          unchanged ? pair.full[i] : FullFrameToOutput(pair.full[i], spec);
       continue;
     }
     const std::string& path = clip.frames[i].image_path;

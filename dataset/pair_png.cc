@@ -1,8 +1,12 @@
 #include "dataset/internal/pair_png.h"
 
 #include <spng.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <zlib.h>
 
+#include <array>
 #include <cstdlib>
 #include <memory>
 #include <vector>
@@ -54,6 +58,20 @@ void EncodePng(const std::string& path,
   WriteFileAtomic(path, png.get(), size);
 }
 
+#if defined(__SSE2__)
+// kReversedBits[b]: b with its bit order reversed (bit 0 <-> bit 7).
+constexpr std::array<uint8_t, 256> ReversedBitsTable() {
+  std::array<uint8_t, 256> table{};
+  for (int b = 0; b < 256; ++b) {
+    int r = 0;
+    for (int i = 0; i < 8; ++i) r |= ((b >> i) & 1) << (7 - i);
+    table[b] = static_cast<uint8_t>(r);
+  }
+  return table;
+}
+constexpr std::array<uint8_t, 256> kReversedBits = ReversedBitsTable();
+#endif
+
 }  // namespace
 
 void WritePairPng(const std::string& path, const cv::Mat& rgb) {
@@ -79,14 +97,26 @@ void WriteMaskPng(const std::string& path, const cv::Mat& mask) {
   for (int y = 0; y < mask.rows; ++y) {
     const uint8_t* in = mask.ptr<uint8_t>(y);
     uint8_t* out = &rows[static_cast<size_t>(y) * stride];
-    // Most significant bit first (PNG); eight pixels a byte, unrolled.
+    // Most significant bit first (PNG).
     int x = 0;
-    for (; x + 8 <= w; x += 8) {
+#if defined(__SSE2__)
+    // Sixteen pixels at a time: movemask gives one bit a pixel, least
+    // significant first; a table reverses the bits of each byte.
+    const __m128i zero = _mm_setzero_si128();
+    for (; x + 16 <= w; x += 16) {
+      const __m128i v =
+          _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + x));
+      const int set = ~_mm_movemask_epi8(_mm_cmpeq_epi8(v, zero)) & 0xffff;
+      out[x >> 3] = kReversedBits[set & 0xff];
+      out[(x >> 3) + 1] = kReversedBits[set >> 8];
+    }
+#endif
+    for (; x + 8 <= w; x += 8) {  // eight pixels a byte, unrolled
       const uint8_t* p = in + x;
-      out[x >> 3] = static_cast<uint8_t>(
-          (p[0] != 0) << 7 | (p[1] != 0) << 6 | (p[2] != 0) << 5 |
-          (p[3] != 0) << 4 | (p[4] != 0) << 3 | (p[5] != 0) << 2 |
-          (p[6] != 0) << 1 | (p[7] != 0));
+      out[x >> 3] = static_cast<uint8_t>((p[0] != 0) << 7 | (p[1] != 0) << 6 |
+                                         (p[2] != 0) << 5 | (p[3] != 0) << 4 |
+                                         (p[4] != 0) << 3 | (p[5] != 0) << 2 |
+                                         (p[6] != 0) << 1 | (p[7] != 0));
     }
     for (; x < w; ++x)
       out[x >> 3] |= static_cast<uint8_t>((in[x] != 0) << (7 - (x & 7)));

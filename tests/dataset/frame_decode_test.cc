@@ -490,5 +490,55 @@ TEST(PairPng, LosslessAndDeterministic) {
   fs::remove_all(dir);
 }
 
+// 1-bit masks: every width modulo 16 (the SIMD body and both tails), a view,
+// read back by our reader (libspng's G8) and OpenCV (libpng): 255 exactly
+// where the mask is set.
+TEST(PairPng, MasksAreOneBitAndReadBackAs0And255) {
+  const std::string dir = test::MakeTempDir("mask_png");
+  for (int w = 1; w <= 40; ++w) {
+    cv::Mat noise(7, w + 3, CV_8UC1);
+    cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(4));
+    const cv::Mat mask = noise(cv::Rect(2, 0, w, 7));  // values 0..3, a view
+    const std::string path = dir + "/m" + std::to_string(w) + ".png";
+    internal::WriteMaskPng(path, mask);
+    const std::string bytes = test::ReadFile(path);
+    ASSERT_GT(bytes.size(), 26u);
+    EXPECT_EQ(static_cast<int>(bytes[24]), 1) << "bit depth, width " << w;
+    EXPECT_EQ(static_cast<int>(bytes[25]), 0) << "gray, width " << w;
+    const cv::Mat expected = (mask != 0);  // 0 / 255
+    const cv::Mat ours = ReadImageGray(path);
+    ASSERT_EQ(ours.size(), mask.size());
+    EXPECT_EQ(cv::norm(ours, expected, cv::NORM_INF), 0.0) << "width " << w;
+    const cv::Mat cv_back = ReadImageUnchanged(path);
+    ASSERT_EQ(cv_back.type(), CV_8UC1);
+    EXPECT_EQ(cv::norm(cv_back, expected, cv::NORM_INF), 0.0) << "width " << w;
+  }
+  EXPECT_THROW(internal::WriteMaskPng(dir + "/e.png", cv::Mat()), InputError);
+  fs::remove_all(dir);
+}
+
+// drivestudio's loader reads a mask as Image.open(path).convert("L") > 0
+// (pixel_source.py:283-375): a 1-bit mask reads as 0 / 255 there too.
+TEST(PairPng, MasksReadByPilAsDrivestudioDoes) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("PIL");
+  const std::string dir = test::MakeTempDir("mask_png_pil");
+  cv::Mat mask(9, 53, CV_8UC1, cv::Scalar(0));
+  mask(cv::Rect(3, 2, 31, 5)).setTo(7);
+  internal::WriteMaskPng(dir + "/pil.png", mask);
+  std::string out;
+  const int rc =
+      test::RunCommand(std::string(test::kDebianPython) +
+                           " -c \"import numpy as n; from PIL import Image; "
+                           "a = n.asarray(Image.open('" +
+                           dir +
+                           "/pil.png').convert('L')); "
+                           "print(a.shape, sorted(set(a.ravel().tolist())), "
+                           "int((a == 255).sum()))\"",
+                       &out);
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_EQ(out, "(9, 53) [0, 255] 155\n");
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace geodrive
