@@ -50,27 +50,39 @@ constexpr float kMaxDepthM = 100.0f;  // cache_3d.py:107-108
 constexpr char kFolder[] = "gen3c";
 
 // depth (T,H,W) float32 and mask (T,H,W) bool: the condition's z-depth where
-// it is in (0, 100], 0 and false elsewhere.
+// it is in (0, 100], 0 and false elsewhere. The depth is written from the
+// render's own frames (no 0.44 GB array assembled for a 121-frame clip); a
+// frame with a value out of that range is written from a cleaned copy.
 void WriteDepthAndMask(const std::string& dir, const ExportClip& clip) {
   const int64_t t = static_cast<int64_t>(clip.depth->size());
-  NpyArray depth = NpyArray::Zeros(NpyDtype::kFloat32, {t, kHeight, kWidth});
-  NpyArray mask = NpyArray::Zeros(NpyDtype::kBool, {t, kHeight, kWidth});
-  float* d = depth.MutableData<float>();
-  uint8_t* m = mask.MutableData<uint8_t>();
+  const size_t pixels = static_cast<size_t>(kWidth) * kHeight;
+  NpyPieces depth{NpyDtype::kFloat32, {t, kHeight, kWidth}, {}};
+  NpyPieces mask{NpyDtype::kBool, {t, kHeight, kWidth}, {}};
+  std::vector<cv::Mat> cleaned(t);
+  std::vector<std::vector<uint8_t>> masks(t, std::vector<uint8_t>(pixels));
   for (int64_t i = 0; i < t; ++i) {
     const cv::Mat& src = (*clip.depth)[i];
-    GEODRIVE_CHECK_INPUT(src.size() == cv::Size(kWidth, kHeight), clip.clip_id,
-                         ": gen3c needs the depth at ", kWidth, "x", kHeight,
-                         "; frame ", i, " is ", src.cols, "x", src.rows);
+    GEODRIVE_CHECK_INPUT(
+        src.size() == cv::Size(kWidth, kHeight) && src.type() == CV_32F,
+        clip.clip_id, ": gen3c needs the depth at ", kWidth, "x", kHeight,
+        " (float); frame ", i, " is ", src.cols, "x", src.rows);
+    uint8_t* m = masks[i].data();
+    bool in_range = src.isContinuous();
     for (int y = 0; y < kHeight; ++y) {
       const float* row = src.ptr<float>(y);
-      const int64_t base = (i * kHeight + y) * kWidth;
       for (int x = 0; x < kWidth; ++x) {
-        if (!(row[x] > 0) || !(row[x] <= kMaxDepthM)) continue;
-        d[base + x] = row[x];
-        m[base + x] = 1;
+        const bool kept = row[x] > 0 && row[x] <= kMaxDepthM;
+        m[static_cast<size_t>(y) * kWidth + x] = kept;
+        in_range &= kept || row[x] == 0;
       }
     }
+    if (!in_range) {
+      cleaned[i] = cv::Mat(kHeight, kWidth, CV_32F, cv::Scalar(0));
+      src.copyTo(cleaned[i], cv::Mat(kHeight, kWidth, CV_8U, m));
+    }
+    const cv::Mat& d = in_range ? src : cleaned[i];
+    depth.pieces.emplace_back(d.data, pixels * sizeof(float));
+    mask.pieces.emplace_back(m, pixels);
   }
   // Stored, not deflated (numpy.savez): deflating a 121-frame clip's depth
   // and mask took tens of seconds (the mask alone 20 s) for disk space.

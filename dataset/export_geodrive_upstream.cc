@@ -47,7 +47,8 @@ void WriteUpstreamFrames(const std::string& dir, const ExportClip& clip) {
       cv::resize(src, f, size, 0, 0,
                  src.cols > size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
     }
-    WritePairPng(up + "/render_" + std::to_string(i) + ".png", f);
+    WritePairPng(up + "/render_" + std::to_string(i) + ".png", f,
+                 i == 0 ? PngContent::kPhoto : PngContent::kRender);
   }
 }
 

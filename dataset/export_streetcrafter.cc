@@ -130,8 +130,10 @@ class StreetCrafterExporter : public Exporter {
           image.rows, " and its guidance ", guidance.cols, "x", guidance.rows);
       WriteJpeg(dir + "/images/" + FrameName(i, ".jpg"), image, kJpegQuality);
       const std::string render = dir + "/lidar/color_render/";
-      WritePairPng(render + FrameName(i, ".png"), guidance);
-      WritePairPng(render + FrameName(i, "_mask.png"), (*clip.drawn)[i]);
+      WritePairPng(render + FrameName(i, ".png"), guidance,
+                   PngContent::kRender);
+      WritePairPng(render + FrameName(i, "_mask.png"), (*clip.drawn)[i],
+                   PngContent::kRender);
       if (clip.metric) {
         WriteDepthNpz(dir + "/lidar/depth/" + FrameName(i, ".npz"),
                       (*clip.depth)[i]);

@@ -74,7 +74,9 @@ constexpr std::array<uint8_t, 256> kReversedBits = ReversedBitsTable();
 
 }  // namespace
 
-void WritePairPng(const std::string& path, const cv::Mat& rgb) {
+void WritePairPng(const std::string& path,
+                  const cv::Mat& rgb,
+                  PngContent content) {
   GEODRIVE_CHECK_INPUT(
       !rgb.empty() && (rgb.type() == CV_8UC3 || rgb.type() == CV_8UC1), path,
       ": expected a non-empty RGB (CV_8UC3) or gray (CV_8UC1) image");
@@ -86,7 +88,8 @@ void WritePairPng(const std::string& path, const cv::Mat& rgb) {
   ihdr.color_type = data.channels() == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
                                          : SPNG_COLOR_TYPE_GRAYSCALE;
   EncodePng(path, ihdr, data.data, data.total() * data.elemSize(),
-            SPNG_FILTER_CHOICE_PAETH);
+            content == PngContent::kPhoto ? SPNG_FILTER_CHOICE_PAETH
+                                          : SPNG_DISABLE_FILTERING);
 }
 
 void WriteMaskPng(const std::string& path, const cv::Mat& mask) {

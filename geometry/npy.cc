@@ -644,34 +644,43 @@ NpyArray ConvertNpyToFloat32(NpyArray in) {
 std::string NpyFileHeader(const std::string& path,
                           const NpyArray& array,
                           const NpyWriteOptions& options) {
-  if (options.major_version < 1 || options.major_version > 3) {
-    ThrowInputError(path, "unsupported .npy format version ",
-                    options.major_version, " (supported: 1, 2, 3)");
-  }
-  if (array.shape.size() > static_cast<size_t>(kMaxDims)) {
-    ThrowInputError(path, "cannot write ", array.shape.size(),
-                    " dimensions (numpy's limit is 32)");
-  }
-  for (int64_t d : array.shape) {
-    if (d < 0) ThrowInputError(path, "cannot write a negative dimension ", d);
-  }
+  std::string header = NpyFileHeader(path, array.dtype, array.shape, options);
   const uint64_t nbytes = CheckedByteSize(path, array.shape, array.dtype);
   if (array.bytes.size() != nbytes) {
     ThrowInputError(path, "array holds ", array.bytes.size(),
                     " bytes but shape ", ShapeRepr(array.shape), " needs ",
                     nbytes);
   }
-  const size_t elem = NpyDtypeSize(array.dtype);
+  return header;
+}
+
+std::string NpyFileHeader(const std::string& path,
+                          NpyDtype dtype,
+                          const std::vector<int64_t>& shape,
+                          const NpyWriteOptions& options) {
+  if (options.major_version < 1 || options.major_version > 3) {
+    ThrowInputError(path, "unsupported .npy format version ",
+                    options.major_version, " (supported: 1, 2, 3)");
+  }
+  if (shape.size() > static_cast<size_t>(kMaxDims)) {
+    ThrowInputError(path, "cannot write ", shape.size(),
+                    " dimensions (numpy's limit is 32)");
+  }
+  for (int64_t d : shape) {
+    if (d < 0) ThrowInputError(path, "cannot write a negative dimension ", d);
+  }
+  CheckedByteSize(path, shape, dtype);
+  const size_t elem = NpyDtypeSize(dtype);
   // Header exactly as numpy 1.24's _write_array_header + _wrap_header produce
   // it.
-  std::string descr = NpyDtypeDescr(array.dtype);
+  std::string descr = NpyDtypeDescr(dtype);
   if (options.big_endian && elem > 1) descr[0] = '>';
   std::string dict = "{'descr': '" + descr + "', 'fortran_order': " +
                      (options.fortran_order ? "True" : "False") +
-                     ", 'shape': " + ShapeRepr(array.shape) + ", }";
-  if (!array.shape.empty()) {
+                     ", 'shape': " + ShapeRepr(shape) + ", }";
+  if (!shape.empty()) {
     const int64_t growth_dim =
-        options.fortran_order ? array.shape.back() : array.shape.front();
+        options.fortran_order ? shape.back() : shape.front();
     const int digits = static_cast<int>(std::to_string(growth_dim).size());
     dict.append(static_cast<size_t>(std::max(0, kGrowthAxisMaxDigits - digits)),
                 ' ');

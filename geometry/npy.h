@@ -110,6 +110,11 @@ struct NpyWriteOptions {
 std::string NpyFileHeader(const std::string& path,
                           const NpyArray& array,
                           const NpyWriteOptions& options = {});
+// The same header for data of `dtype` and `shape` held elsewhere.
+std::string NpyFileHeader(const std::string& path,
+                          NpyDtype dtype,
+                          const std::vector<int64_t>& shape,
+                          const NpyWriteOptions& options = {});
 // True when the file's data are array.bytes unchanged (C order or one
 // dimension, the host's byte order): the file is NpyFileHeader + bytes.
 bool NpyDataIsStoredAsIs(const NpyArray& array,

@@ -260,55 +260,36 @@ std::string NpzReader::ReadString(const std::string& key) const {
   return out;
 }
 
-void WriteNpz(const std::string& path,
-              const std::vector<std::pair<std::string, NpyArray>>& arrays,
-              bool compress) {
-  // Each member is the .npy file (format 1.0) WriteNpy would write: its
-  // header, then the array's own bytes where they are stored as they are
-  // (no copy of the data), else the whole file built in memory.
+namespace {
+
+// One member of an archive being written: its name (with ".npy") and its
+// bytes as fragments held by the caller.
+struct ZipMember {
+  std::string name;
+  std::vector<zip_buffer_fragment_t> fragments;
+};
+
+// Writes `members` as a zip archive at `path` (temporary file + rename),
+// deflated or stored, every member dated 1980-01-02. libzip only reads the
+// fragments.
+void WriteZipMembers(const std::string& path,
+                     std::vector<ZipMember>& members,
+                     bool compress) {
   const std::string tmp = path + ".tmp-npz";
-  std::vector<std::string> heads, files;
-  heads.reserve(arrays.size());
-  files.reserve(arrays.size());
-  for (const auto& [name, array] : arrays) {
-    const std::string what = path + ":" + name;
-    if (NpyDataIsStoredAsIs(array)) {
-      heads.push_back(NpyFileHeader(what, array));
-      files.emplace_back();
-    } else {
-      heads.emplace_back();
-      files.push_back(SerializeNpy(what, array));
-    }
-  }
   int error = 0;
   zip_t* z = zip_open(tmp.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &error);
   GEODRIVE_CHECK_INPUT(z != nullptr, path, ": cannot create the archive");
-  for (size_t i = 0; i < arrays.size(); ++i) {
-    // libzip only reads the fragments (freep = 0).
-    auto bytes = [](const auto& v) {
-      return const_cast<zip_uint8_t*>(
-          reinterpret_cast<const zip_uint8_t*>(v.data()));
-    };
-    const std::vector<uint8_t>& data = arrays[i].second.bytes;
-    std::vector<zip_buffer_fragment_t> fragments;
-    if (files[i].empty()) {
-      fragments.push_back({bytes(heads[i]), heads[i].size()});
-      if (!data.empty()) fragments.push_back({bytes(data), data.size()});
-    } else {
-      fragments.push_back({bytes(files[i]), files[i].size()});
-    }
-    zip_source_t* src =
-        zip_source_buffer_fragment(z, fragments.data(), fragments.size(), 0);
+  for (ZipMember& m : members) {
+    zip_source_t* src = zip_source_buffer_fragment(
+        z, m.fragments.data(), m.fragments.size(), /*freep=*/0);
     const zip_int64_t index =
-        src ? zip_file_add(z, (arrays[i].first + ".npy").c_str(), src,
-                           ZIP_FL_ENC_UTF_8)
-            : -1;
+        src ? zip_file_add(z, m.name.c_str(), src, ZIP_FL_ENC_UTF_8) : -1;
     if (index < 0) {
       if (src) zip_source_free(src);
       const std::string why = zip_strerror(z);
       zip_discard(z);
       std::remove(tmp.c_str());
-      ThrowInputError(path, "cannot add member ", arrays[i].first, ": ", why);
+      ThrowInputError(path, "cannot add member ", m.name, ": ", why);
     }
     zip_set_file_compression(z, static_cast<zip_uint64_t>(index),
                              compress ? ZIP_CM_DEFLATE : ZIP_CM_STORE, 0);
@@ -324,6 +305,67 @@ void WriteNpz(const std::string& path,
   }
   GEODRIVE_CHECK_INPUT(std::rename(tmp.c_str(), path.c_str()) == 0, path,
                        ": cannot rename the temporary archive into place");
+}
+
+zip_buffer_fragment_t Fragment(const void* data, size_t size) {
+  return {const_cast<zip_uint8_t*>(static_cast<const zip_uint8_t*>(data)),
+          size};
+}
+
+}  // namespace
+
+void WriteNpz(const std::string& path,
+              const std::vector<std::pair<std::string, NpyArray>>& arrays,
+              bool compress) {
+  // Each member is the .npy file (format 1.0) WriteNpy would write: its
+  // header, then the array's own bytes where they are stored as they are
+  // (no copy of the data), else the whole file built in memory.
+  std::vector<std::string> heads(arrays.size());
+  std::vector<ZipMember> members(arrays.size());
+  for (size_t i = 0; i < arrays.size(); ++i) {
+    const auto& [name, array] = arrays[i];
+    const std::string what = path + ":" + name;
+    members[i].name = name + ".npy";
+    if (NpyDataIsStoredAsIs(array)) {
+      heads[i] = NpyFileHeader(what, array);
+      members[i].fragments.push_back(
+          Fragment(heads[i].data(), heads[i].size()));
+      if (!array.bytes.empty()) {
+        members[i].fragments.push_back(
+            Fragment(array.bytes.data(), array.bytes.size()));
+      }
+    } else {
+      heads[i] = SerializeNpy(what, array);
+      members[i].fragments.push_back(
+          Fragment(heads[i].data(), heads[i].size()));
+    }
+  }
+  WriteZipMembers(path, members, compress);
+}
+
+void WriteNpz(const std::string& path,
+              const std::vector<std::pair<std::string, NpyPieces>>& arrays,
+              bool compress) {
+  std::vector<std::string> heads(arrays.size());
+  std::vector<ZipMember> members(arrays.size());
+  for (size_t i = 0; i < arrays.size(); ++i) {
+    const auto& [name, array] = arrays[i];
+    const std::string what = path + ":" + name;
+    heads[i] = NpyFileHeader(what, array.dtype, array.shape);
+    uint64_t held = 0;
+    for (const auto& [data, size] : array.pieces) held += size;
+    uint64_t count = 1;
+    for (const int64_t d : array.shape) count *= static_cast<uint64_t>(d);
+    const uint64_t needed = count * NpyDtypeSize(array.dtype);
+    GEODRIVE_CHECK_INPUT(held == needed, what, ": the pieces hold ", held,
+                         " bytes but the shape needs ", needed);
+    members[i].name = name + ".npy";
+    members[i].fragments.push_back(Fragment(heads[i].data(), heads[i].size()));
+    for (const auto& [data, size] : array.pieces) {
+      if (size > 0) members[i].fragments.push_back(Fragment(data, size));
+    }
+  }
+  WriteZipMembers(path, members, compress);
 }
 
 bool LooksLikeZip(const std::string& path) {

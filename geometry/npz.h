@@ -56,6 +56,21 @@ void WriteNpz(const std::string& path,
               const std::vector<std::pair<std::string, NpyArray>>& arrays,
               bool compress = true);
 
+// An array whose C-order bytes are held elsewhere, in pieces (pointer, byte
+// count) concatenated in order: an array assembled from per-frame buffers,
+// written without a copy. The pieces must outlive the write.
+struct NpyPieces {
+  NpyDtype dtype = NpyDtype::kFloat32;
+  std::vector<int64_t> shape;
+  std::vector<std::pair<const void*, size_t>> pieces;
+};
+// WriteNpz of arrays given as pieces: the bytes WriteNpz writes for the
+// assembled arrays. Throws InputError when the pieces do not hold the
+// shape's bytes.
+void WriteNpz(const std::string& path,
+              const std::vector<std::pair<std::string, NpyPieces>>& arrays,
+              bool compress = true);
+
 // True when `path` starts with a zip signature (an .npz or any zip file).
 bool LooksLikeZip(const std::string& path);
 
