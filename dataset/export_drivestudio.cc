@@ -228,8 +228,8 @@ cv::Mat SkyMask(const PinholeCamera& cam,
 
 // The box's axis-aligned 2D box, as upstream draws it: all eight corners at
 // z > 0.1 and inside [0, W) x [0, H), else nothing; pixel bounds truncated to
-// integers, the maxima exclusive.
-void DrawBox(const ExportObject& o,
+// integers, the maxima exclusive. Returns true when it drew.
+bool DrawBox(const ExportObject& o,
              const PinholeCamera& cam,
              const Rigid3d& cam_from_world,
              cv::Mat* mask) {
@@ -239,18 +239,40 @@ void DrawBox(const ExportObject& o,
                                  ((k & 2) ? 0.5 : -0.5) * o.lwh.y(),
                                  ((k & 4) ? 0.5 : -0.5) * o.lwh.z());
     const Eigen::Vector3d c = cam_from_world * (o.world_from_box * corner);
-    if (!(c.z() > 0.1)) return;
+    if (!(c.z() > 0.1)) return false;
     const double u = cam.fx * c.x() / c.z() + cam.cx;
     const double v = cam.fy * c.y() / c.z() + cam.cy;
-    if (!(u >= 0 && u < mask->cols && v >= 0 && v < mask->rows)) return;
+    if (!(u >= 0 && u < mask->cols && v >= 0 && v < mask->rows)) return false;
     umin = std::min(umin, static_cast<int>(u));
     umax = std::max(umax, static_cast<int>(u));
     vmin = std::min(vmin, static_cast<int>(v));
     vmax = std::max(vmax, static_cast<int>(v));
   }
-  if (umax == umin || vmax == vmin) return;
+  if (umax == umin || vmax == vmin) return false;
   (*mask)(cv::Rect(umin, vmin, umax - umin, vmax - vmin)).setTo(255);
+  return true;
 }
+
+// 1-bit PNG bytes of the clip's masks (WriteMaskPng's), an empty mask
+// encoded once: most frames' masks of a kind are empty.
+class MaskEncoder {
+ public:
+  explicit MaskEncoder(std::string what) : what_(std::move(what)) {}
+  // The PNG of `mask`; `any` = it has a pixel set.
+  std::string Encode(const cv::Mat& mask, bool any) {
+    if (any) return EncodeMaskPng(what_, mask);
+    if (empty_.empty() || empty_size_ != mask.size()) {
+      empty_ = EncodeMaskPng(what_, mask);
+      empty_size_ = mask.size();
+    }
+    return empty_;
+  }
+
+ private:
+  std::string what_;
+  std::string empty_;
+  cv::Size empty_size_;
+};
 
 // instances_info.json and frame_instances.json: the boxes of the 18
 // categories, numbered in order of first appearance.
@@ -352,6 +374,7 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
                 cam.fx, cam.fy, cam.cx, cam.cy);
   const std::string cam_id = std::to_string(kCamera);
   WriteFileAtomic(dir + "/intrinsics/" + cam_id + ".txt", k);
+  MaskEncoder masks(clip.clip_id + ": drivestudio mask");
   for (int t = 0; t < n; ++t) {
     const cv::Mat& image = (*clip.images)[t];
     GEODRIVE_CHECK_INPUT(image.size() == cv::Size(kWidth, kHeight),
@@ -365,20 +388,30 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
     WriteFileAtomic(dir + "/lidar_pose/" + Frame(t) + ".txt",
                     MatrixText(sweep.world_from_sensor));
     WriteLidar(dir + "/lidar/" + Frame(t) + ".bin", sweep);
-    WriteMaskPng(dir + "/sky_masks/" + name + ".png",
-                 SkyMask(cam, clip.world_from_cam[t], clip.world_up,
-                         clip.scene_cloud, sweep, kWidth, kHeight));
+    const cv::Mat sky = SkyMask(cam, clip.world_from_cam[t], clip.world_up,
+                                clip.scene_cloud, sweep, kWidth, kHeight);
+    WriteFileAtomic(dir + "/sky_masks/" + name + ".png",
+                    masks.Encode(sky, cv::countNonZero(sky) > 0));
     const Rigid3d cam_from_world = clip.world_from_cam[t].Inverse();
     cv::Mat human(kHeight, kWidth, CV_8U, cv::Scalar(0));
     cv::Mat vehicle = human.clone();
+    bool any_human = false, any_vehicle = false;
     for (const ExportObject& o : (*clip.objects)[t]) {
-      if (In(kNonRigid, o.category)) DrawBox(o, cam, cam_from_world, &human);
-      if (In(kRigid, o.category)) DrawBox(o, cam, cam_from_world, &vehicle);
+      if (In(kNonRigid, o.category))
+        any_human |= DrawBox(o, cam, cam_from_world, &human);
+      if (In(kRigid, o.category))
+        any_vehicle |= DrawBox(o, cam, cam_from_world, &vehicle);
     }
-    const std::string masks = dir + "/dynamic_masks/";
-    WriteMaskPng(masks + "all/" + name + ".png", human | vehicle);
-    WriteMaskPng(masks + "human/" + name + ".png", human);
-    WriteMaskPng(masks + "vehicle/" + name + ".png", vehicle);
+    const std::string dyn = dir + "/dynamic_masks/";
+    const std::string human_png = masks.Encode(human, any_human);
+    const std::string vehicle_png = masks.Encode(vehicle, any_vehicle);
+    // all = human | vehicle: one of them when the other is empty.
+    WriteFileAtomic(dyn + "all/" + name + ".png",
+                    !any_human     ? vehicle_png
+                    : !any_vehicle ? human_png
+                                   : masks.Encode(human | vehicle, true));
+    WriteFileAtomic(dyn + "human/" + name + ".png", human_png);
+    WriteFileAtomic(dyn + "vehicle/" + name + ".png", vehicle_png);
   }
   WriteInstances(dir + "/instances", clip);
   meta->files[kFolder] = kFolder;

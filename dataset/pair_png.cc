@@ -27,12 +27,13 @@ struct SpngFree {
 
 namespace {
 
-// Encodes `rows` (packed as `ihdr` says) with the pair's PNG settings.
-void EncodePng(const std::string& path,
-               const spng_ihdr& ihdr,
-               const void* rows,
-               size_t bytes,
-               int filter) {
+// Encodes `rows` (packed as `ihdr` says) with the pair's PNG settings;
+// `path` names the file in errors.
+std::string EncodePng(const std::string& path,
+                      const spng_ihdr& ihdr,
+                      const void* rows,
+                      size_t bytes,
+                      int filter) {
   std::unique_ptr<spng_ctx, SpngFree> ctx(spng_ctx_new(SPNG_CTX_ENCODER));
   GEODRIVE_CHECK_INPUT(ctx != nullptr, path,
                        ": cannot start libspng (out of memory)");
@@ -55,7 +56,7 @@ void EncodePng(const std::string& path,
       spng_get_png_buffer(ctx.get(), &size, &err));
   check(err);
   GEODRIVE_CHECK_INPUT(png != nullptr, path, ": libspng returned no PNG");
-  WriteFileAtomic(path, png.get(), size);
+  return std::string(static_cast<const char*>(png.get()), size);
 }
 
 #if defined(__SSE2__)
@@ -87,12 +88,17 @@ void WritePairPng(const std::string& path,
   ihdr.bit_depth = 8;
   ihdr.color_type = data.channels() == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
                                          : SPNG_COLOR_TYPE_GRAYSCALE;
-  EncodePng(path, ihdr, data.data, data.total() * data.elemSize(),
-            content == PngContent::kPhoto ? SPNG_FILTER_CHOICE_PAETH
-                                          : SPNG_DISABLE_FILTERING);
+  WriteFileAtomic(
+      path, EncodePng(path, ihdr, data.data, data.total() * data.elemSize(),
+                      content == PngContent::kPhoto ? SPNG_FILTER_CHOICE_PAETH
+                                                    : SPNG_DISABLE_FILTERING));
 }
 
 void WriteMaskPng(const std::string& path, const cv::Mat& mask) {
+  WriteFileAtomic(path, EncodeMaskPng(path, mask));
+}
+
+std::string EncodeMaskPng(const std::string& path, const cv::Mat& mask) {
   GEODRIVE_CHECK_INPUT(!mask.empty() && mask.type() == CV_8UC1, path,
                        ": expected a non-empty mask (CV_8UC1)");
   const int w = mask.cols, stride = (w + 7) / 8;
@@ -130,7 +136,8 @@ void WriteMaskPng(const std::string& path, const cv::Mat& mask) {
   ihdr.bit_depth = 1;
   ihdr.color_type = SPNG_COLOR_TYPE_GRAYSCALE;
   // Filters gain nothing on runs of whole bytes; none is the fastest.
-  EncodePng(path, ihdr, rows.data(), rows.size(), SPNG_DISABLE_FILTERING);
+  return EncodePng(path, ihdr, rows.data(), rows.size(),
+                   SPNG_DISABLE_FILTERING);
 }
 
 }  // namespace internal

@@ -36,6 +36,8 @@ void WritePairPng(const std::string& path,
 // an eighth of the bytes to deflate. Readers expand 1-bit gray to 0/255
 // (libpng and OpenCV with expand, PIL's convert("L"), libspng's G8).
 void WriteMaskPng(const std::string& path, const cv::Mat& mask);
+// The bytes WriteMaskPng writes; `path` names the file in errors.
+std::string EncodeMaskPng(const std::string& path, const cv::Mat& mask);
 
 }  // namespace internal
 }  // namespace geodrive
