@@ -12,8 +12,8 @@
 #    --geometry lidar): none, streetcrafter, drivestudio, geodrive-upstream;
 #  - one synthetic 121-frame clip at 12 Hz (`geodrive synth --duration 10.5`,
 #    1600x900, made here; --clip-frames 121): none, gen3c, rds-hq.
-# Each build runs REPEAT times (default 3) and the least process CPU counts
-# (a shared machine's noise only adds time).
+# REPEAT rounds (default 3) run every build once in turn, and each build's
+# least process CPU counts (a shared machine's noise only adds time).
 # Environment: MAX_CLIPS (default 3, real scene), REPEAT, CORE (pin to this
 # core).
 set -euo pipefail
@@ -30,32 +30,49 @@ trap 'rm -rf "$work"' EXIT
 pin=()
 [[ -n ${CORE:-} ]] && pin=(taskset -c "$CORE")
 
-# build NAME EXPORT ARGS...: REPEAT build-dataset runs; prints and records
-# "<process CPU s per clip> <worker CPU s per clip>" of the run with the
-# least process CPU.
-build() {
+# run NAME EXPORT ARGS...: one build-dataset run; keeps in $work/NAME.sum
+# "<process CPU s per clip> <worker CPU s per clip>" of the NAME run with the
+# least process CPU so far.
+run() {
   local name=$1 export=$2
   shift 2
-  local log=$work/$name.log best="" r
-  for ((r = 0; r < REPEAT; ++r)); do
-    rm -rf "$work/out_$name"
-    /usr/bin/time -f "%U %S" -o "$work/$name.time" "${pin[@]}" "$GEODRIVE" build-dataset \
-      --threads 1 --export "$export" --out "$work/out_$name" "$@" >"$log" 2>&1
-    local clips worker process
-    clips=$(grep -o 'pairs built [0-9]*' "$log" | grep -o '[0-9]*$')
-    worker=$(grep '^CPU per stage' "$log" | sed 's/.*threads): //' |
-      awk '{ s = 0; for (i = 2; i <= NF; i += 2) s += $i; print s }')
-    process=$(awk '{ print $1 + $2 }' "$work/$name.time")
-    local p w
-    p=$(echo "$process / $clips" | bc -l)
-    w=$(echo "$worker / $clips" | bc -l)
-    if [[ -z $best ]] || (($(echo "$p < ${best% *}" | bc -l))); then best="$p $w"; fi
-  done
-  echo "$best" >"$work/$name.sum"
-  read -r p w <<<"$best"
-  printf '%-24s clips %s  process CPU/clip %7.3f s  worker CPU/clip %7.3f s (least of %d)\n' \
-    "$name" "$clips" "$p" "$w" "$REPEAT"
+  local log=$work/$name.log
   rm -rf "$work/out_$name"
+  /usr/bin/time -f "%U %S" -o "$work/$name.time" "${pin[@]}" "$GEODRIVE" build-dataset \
+    --threads 1 --export "$export" --out "$work/out_$name" "$@" >"$log" 2>&1
+  rm -rf "$work/out_$name"
+  local clips worker process p w
+  clips=$(grep -o 'pairs built [0-9]*' "$log" | grep -o '[0-9]*$')
+  worker=$(grep '^CPU per stage' "$log" | sed 's/.*threads): //' |
+    awk '{ s = 0; for (i = 2; i <= NF; i += 2) s += $i; print s }')
+  process=$(awk '{ print $1 + $2 }' "$work/$name.time")
+  p=$(echo "$process / $clips" | bc -l)
+  w=$(echo "$worker / $clips" | bc -l)
+  if [[ ! -f $work/$name.sum ]] || (($(echo "$p < $(cut -d' ' -f1 "$work/$name.sum")" | bc -l))); then
+    echo "$p $w" >"$work/$name.sum"
+  fi
+}
+
+# rounds LABEL ARGS... -- EXPORT...: REPEAT rounds, each building with every
+# EXPORT once in turn (a shared machine's drift then reaches them all alike),
+# then each one's least process CPU per clip (as LABEL_EXPORT).
+rounds() {
+  local label=$1
+  shift
+  local args=() r e p w
+  while [[ $1 != -- ]]; do
+    args+=("$1")
+    shift
+  done
+  shift
+  for ((r = 0; r < REPEAT; ++r)); do
+    for e in "$@"; do run "${label}_$e" "$e" "${args[@]}"; done
+  done
+  for e in "$@"; do
+    read -r p w <"$work/${label}_$e.sum"
+    printf '%-24s process CPU/clip %7.3f s  worker CPU/clip %7.3f s (least of %d)\n' \
+      "${label}_$e" "$p" "$w" "$REPEAT"
+  done
 }
 
 # ratio BASE NAME: the export's process CPU against the build without one.
@@ -70,13 +87,11 @@ ratio() {
 echo "real scene-0916, keyframe clips of 25 frames, --geometry lidar:"
 real=(--dataroot "$REAL" --version v1.0-mini-extract --frames keyframes --geometry lidar
   --max-clips "$MAX_CLIPS")
-build real_none none "${real[@]}"
-for f in streetcrafter drivestudio geodrive-upstream; do build "real_$f" "$f" "${real[@]}"; done
+rounds real "${real[@]}" -- none streetcrafter drivestudio geodrive-upstream
 for f in streetcrafter drivestudio geodrive-upstream; do ratio real_none "real_$f"; done
 
 echo "synthetic, one clip of 121 frames at 12 Hz, --geometry lidar:"
 "$GEODRIVE" synth --out "$work/synth" --scenes 1 --duration 10.5 >/dev/null
 synth=(--dataroot "$work/synth" --geometry lidar --clip-frames 121 --max-clips 1)
-build synth_none none "${synth[@]}"
-for f in gen3c rds-hq; do build "synth_$f" "$f" "${synth[@]}"; done
+rounds synth "${synth[@]}" -- none gen3c rds-hq
 for f in gen3c rds-hq; do ratio synth_none "synth_$f"; done
