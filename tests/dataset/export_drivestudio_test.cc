@@ -37,7 +37,7 @@ namespace fs = std::filesystem;
 constexpr int kFrames = 13, kWidth = 1600, kHeight = 900;
 
 // One scene at the full 12 Hz camera rate, 3 s (a 13-frame clip), small
-// images (the export decodes and renders at 1600x900 whatever the source).
+// images (the export writes its images at 1600x900 whatever the source).
 const SyntheticDatasetOptions& WorldOptions() {
   static const SyntheticDatasetOptions o = [] {
     SyntheticDatasetOptions w;
@@ -69,7 +69,7 @@ BuildDatasetOptions Options(const std::string& out) {
   o.quiet = true;
   o.clip_frames = kFrames;
   o.clips = {kClip};
-  o.width = 256;  // the pair's own size; the export renders at 1600x900
+  o.width = 256;  // the pair's own size; the export writes 1600x900
   o.height = 144;
   o.exports = {ExportFormat::kDrivestudio};
   return o;
@@ -228,6 +228,16 @@ TEST(ExportDrivestudio, CamerasAreOursAtTheExportSize) {
   const cv::Mat image = ReadImageRgb(real + "/images/040_0.jpg");
   EXPECT_EQ(image.cols, kWidth);
   EXPECT_EQ(image.rows, kHeight);
+  // The real cameras are 1600x900: every image is the source JPEG's bytes.
+  // The synthetic ones (320x180) are decoded, scaled up and encoded.
+  ASSERT_EQ(real_clip.num_frames(), 41);
+  for (int t = 0; t < 41; ++t) {
+    EXPECT_EQ(test::ReadFile(real + "/images/" + Name(t) + "_0.jpg"),
+              test::ReadFile(real_clip.frames[t].image_path))
+        << "frame " << t;
+  }
+  const cv::Mat synthetic = ReadImageRgb(SceneDir() + "/images/000_0.jpg");
+  EXPECT_EQ(synthetic.size(), cv::Size(kWidth, kHeight));
 }
 
 // LiDAR returns of frames 0, 6, 12 (lidar_pose @ [x, y, z, 1]) projected
@@ -235,7 +245,7 @@ TEST(ExportDrivestudio, CamerasAreOursAtTheExportSize) {
 // sweep's time equals the point's camera z (1e-3 relative) for most, and is
 // never beyond it. The sky mask at those frames against the true depth:
 // little within the LiDAR's range (100 m from it) is called sky (under 5 %
-// of the masked pixels, 3.9 % measured: surfaces between returns; what is
+// of the masked pixels, none measured: surfaces between returns; what is
 // beyond the range, far buildings down the street, can be);
 // the mask covers part of the true sky (the band within the LiDAR's vertical
 // field of view).
