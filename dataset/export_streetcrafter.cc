@@ -13,7 +13,7 @@
 //                                     each Waymo camera's bytes written as
 //                                     they are (waymo_converter.py:146-150,
 //                                     under .png names); the loader opens
-//                                     them with PIL, by content (waymo.py:58)
+//                                     them with PIL, by content (waymo.py:59)
 //   lidar/color_render/%06d_0.png     the guidance: our condition (the
 //                                     scene's points coloured from the
 //                                     images, on black)
