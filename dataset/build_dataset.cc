@@ -180,10 +180,13 @@ void BuildDatasetOptions::Check() const {
                          "camera's frame folders; with --cameras the pairs "
                          "hold gt_<CAM>.mp4 / cond_<CAM>.mp4 only (--crf 0 "
                          "for the least loss)");
-    GEODRIVE_CHECK_INPUT(exports.empty(), "build-dataset: --export ",
-                         ToString(exports),
-                         " is single-camera (the trainers read one camera's "
-                         "clips); drop --cameras or --export");
+    for (const ExportFormat format : exports) {
+      GEODRIVE_CHECK_INPUT(
+          CreateExporter(format, export_options)->WritesRigs(),
+          "build-dataset: --export ", ToString(format),
+          " is single-camera (its trainer reads one camera's clips); drop "
+          "--cameras or that format (drivestudio takes a rig)");
+    }
   }
   CheckLateralOffsets(*this);
   GEODRIVE_CHECK_INPUT(export_options.Check(),

@@ -40,6 +40,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -63,7 +64,12 @@ namespace fs = std::filesystem;
 using ojson = nlohmann::ordered_json;
 
 constexpr int kWidth = 1600, kHeight = 900;  // dataset_meta.py:98-128
-constexpr int kCamera = 0;                   // CAM_FRONT in drivestudio's order
+constexpr int kCamera = 0;  // a single camera: CAM_FRONT in drivestudio's order
+// drivestudio's camera order of nuScenes (datasets/dataset_meta.py:98-128):
+// a rig's channels are numbered by it.
+constexpr const char* kCameraOrder[] = {"CAM_FRONT",       "CAM_FRONT_LEFT",
+                                        "CAM_FRONT_RIGHT", "CAM_BACK_LEFT",
+                                        "CAM_BACK_RIGHT",  "CAM_BACK"};
 constexpr int kJpegQuality = 95;
 constexpr char kFolder[] = "drivestudio";
 
@@ -347,49 +353,74 @@ class DrivestudioExporter : public Exporter {
                  const std::string& pair_dir,
                  PairMeta* meta) const override;
 
+  bool WritesRigs() const override { return true; }
+  void WriteRig(const std::vector<ExportClip>& views,
+                const std::string& pair_dir,
+                PairMeta* meta) const override;
+
   int Finish(const std::string& out) const override;
 };
 
-void DrivestudioExporter::WriteClip(const ExportClip& clip,
-                                    const std::string& pair_dir,
-                                    PairMeta* meta) const {
-  const int n = static_cast<int>(clip.images->size());
-  CheckClip(clip.clip_id, n);
+// drivestudio's camera index of a nuScenes channel (dataset_meta.py:98-128);
+// -1 for another name.
+int CameraIndex(const std::string& channel) {
+  for (int i = 0; i < static_cast<int>(std::size(kCameraOrder)); ++i)
+    if (channel == kCameraOrder[i]) return i;
+  return -1;
+}
+
+// Checks one camera's clip of `n` frames: poses, sweeps and objects for
+// every frame, frames at 1600x900.
+void CheckCameraClip(const ExportClip& clip, int n) {
   GEODRIVE_CHECK_INPUT(
-      clip.lidar && clip.objects && static_cast<int>(clip.lidar->size()) == n &&
+      clip.lidar && clip.objects && clip.images &&
+          static_cast<int>(clip.images->size()) == n &&
+          static_cast<int>(clip.lidar->size()) == n &&
           static_cast<int>(clip.objects->size()) == n &&
           static_cast<int>(clip.world_from_cam.size()) == n,
       clip.clip_id,
-      ": drivestudio needs a pose, a LiDAR sweep and the objects of every "
-      "frame");
-  const std::string dir = pair_dir + "/" + kFolder;
-  for (const char* sub :
-       {"images", "extrinsics", "intrinsics", "lidar_pose", "lidar",
-        "sky_masks", "dynamic_masks/all", "dynamic_masks/human",
-        "dynamic_masks/vehicle", "instances"})
-    fs::create_directories(dir + "/" + sub);
+      ": drivestudio needs a frame, a pose, a LiDAR sweep and the objects of "
+      "every frame (",
+      n, " frames)");
+  for (const cv::Mat& image : *clip.images) {
+    GEODRIVE_CHECK_INPUT(image.size() == cv::Size(kWidth, kHeight),
+                         clip.clip_id, ": drivestudio needs frames at ", kWidth,
+                         "x", kHeight, ", got ", image.cols, "x", image.rows);
+  }
+}
+
+// What the cameras share: lidar/, lidar_pose/ and instances/.
+void WriteSceneFiles(const std::string& dir, const ExportClip& clip) {
+  for (size_t t = 0; t < clip.lidar->size(); ++t) {
+    const ExportSweep& sweep = (*clip.lidar)[t];
+    const std::string name = Frame(static_cast<int>(t));
+    WriteFileAtomic(dir + "/lidar_pose/" + name + ".txt",
+                    MatrixText(sweep.world_from_sensor));
+    WriteLidar(dir + "/lidar/" + name + ".bin", sweep);
+  }
+  WriteInstances(dir + "/instances", clip);
+}
+
+// Camera `cam_index`'s files: intrinsics/, and per frame images/,
+// extrinsics/, sky_masks/ and dynamic_masks/.
+void WriteCameraFiles(const std::string& dir,
+                      const ExportClip& clip,
+                      int cam_index) {
   const PinholeCamera& cam = clip.camera;
   char k[256];
   std::snprintf(k, sizeof(k), "%.17g\n%.17g\n%.17g\n%.17g\n0\n0\n0\n0\n0\n",
                 cam.fx, cam.fy, cam.cx, cam.cy);
-  const std::string cam_id = std::to_string(kCamera);
+  const std::string cam_id = std::to_string(cam_index);
   WriteFileAtomic(dir + "/intrinsics/" + cam_id + ".txt", k);
   MaskEncoder masks(clip.clip_id + ": drivestudio mask");
-  for (int t = 0; t < n; ++t) {
-    const cv::Mat& image = (*clip.images)[t];
-    GEODRIVE_CHECK_INPUT(image.size() == cv::Size(kWidth, kHeight),
-                         clip.clip_id, ": drivestudio needs frames at ", kWidth,
-                         "x", kHeight, ", got ", image.cols, "x", image.rows);
-    const std::string name = Frame(t) + "_" + cam_id;
-    WriteImage(dir + "/images/" + name + ".jpg", clip, t);
+  for (size_t t = 0; t < clip.images->size(); ++t) {
+    const std::string name = Frame(static_cast<int>(t)) + "_" + cam_id;
+    WriteImage(dir + "/images/" + name + ".jpg", clip, static_cast<int>(t));
     WriteFileAtomic(dir + "/extrinsics/" + name + ".txt",
                     MatrixText(clip.world_from_cam[t]));
-    const ExportSweep& sweep = (*clip.lidar)[t];
-    WriteFileAtomic(dir + "/lidar_pose/" + Frame(t) + ".txt",
-                    MatrixText(sweep.world_from_sensor));
-    WriteLidar(dir + "/lidar/" + Frame(t) + ".bin", sweep);
-    const cv::Mat sky = SkyMask(cam, clip.world_from_cam[t], clip.world_up,
-                                clip.scene_cloud, sweep, kWidth, kHeight);
+    const cv::Mat sky =
+        SkyMask(cam, clip.world_from_cam[t], clip.world_up, clip.scene_cloud,
+                (*clip.lidar)[t], kWidth, kHeight);
     WriteFileAtomic(dir + "/sky_masks/" + name + ".png",
                     masks.Encode(sky, cv::countNonZero(sky) > 0));
     const Rigid3d cam_from_world = clip.world_from_cam[t].Inverse();
@@ -413,7 +444,51 @@ void DrivestudioExporter::WriteClip(const ExportClip& clip,
     WriteFileAtomic(dyn + "human/" + name + ".png", human_png);
     WriteFileAtomic(dyn + "vehicle/" + name + ".png", vehicle_png);
   }
-  WriteInstances(dir + "/instances", clip);
+}
+
+std::string MakeSceneFolder(const std::string& pair_dir) {
+  const std::string dir = pair_dir + "/" + kFolder;
+  for (const char* sub :
+       {"images", "extrinsics", "intrinsics", "lidar_pose", "lidar",
+        "sky_masks", "dynamic_masks/all", "dynamic_masks/human",
+        "dynamic_masks/vehicle", "instances"})
+    fs::create_directories(dir + "/" + sub);
+  return dir;
+}
+
+void DrivestudioExporter::WriteClip(const ExportClip& clip,
+                                    const std::string& pair_dir,
+                                    PairMeta* meta) const {
+  const int n = static_cast<int>(clip.images->size());
+  CheckClip(clip.clip_id, n);
+  CheckCameraClip(clip, n);
+  const std::string dir = MakeSceneFolder(pair_dir);
+  WriteSceneFiles(dir, clip);
+  WriteCameraFiles(dir, clip, kCamera);
+  meta->files[kFolder] = kFolder;
+}
+
+void DrivestudioExporter::WriteRig(const std::vector<ExportClip>& views,
+                                   const std::string& pair_dir,
+                                   PairMeta* meta) const {
+  GEODRIVE_CHECK_INPUT(!views.empty(), pair_dir, ": a rig with no camera");
+  const ExportClip& reference = views.front();
+  const int n = static_cast<int>(reference.images->size());
+  CheckClip(reference.clip_id, n);
+  std::vector<int> index;
+  for (const ExportClip& v : views) {
+    CheckCameraClip(v, n);
+    index.push_back(CameraIndex(v.channel));
+    GEODRIVE_CHECK_INPUT(index.back() >= 0, v.clip_id,
+                         ": drivestudio's nuScenes layout numbers the cameras "
+                         "CAM_FRONT, CAM_FRONT_LEFT, CAM_FRONT_RIGHT, "
+                         "CAM_BACK_LEFT, CAM_BACK_RIGHT, CAM_BACK; ",
+                         v.channel, " is none of them");
+  }
+  const std::string dir = MakeSceneFolder(pair_dir);
+  WriteSceneFiles(dir, reference);
+  for (size_t k = 0; k < views.size(); ++k)
+    WriteCameraFiles(dir, views[k], index[k]);
   meta->files[kFolder] = kFolder;
 }
 

@@ -31,8 +31,11 @@ BuildDatasetOptions OptionsOfPair(const PairMeta& meta,
   BuildDatasetOptions o;
   try {
     const json j = json::parse(meta.options_json);
-    GEODRIVE_CHECK_INPUT(!j.contains("cameras"), what,
-                         ": a surround-view pair; exports are single-camera");
+    GEODRIVE_CHECK_INPUT(
+        !j.contains("cameras"), what,
+        ": a surround-view pair; export a rig with build-dataset --cameras "
+        "... --export drivestudio (geodrive export converts "
+        "single-camera pairs)");
     const json& in = j.at("inputs");
     o.dataroot = in.at("dataroot").get<std::string>();
     if (in.contains("root")) o.monst3r_root = in["root"].get<std::string>();

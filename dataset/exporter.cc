@@ -117,6 +117,16 @@ void Exporter::CheckClip(const std::string& clip_id, int num_frames) const {
   CheckClipForExport(*this, clip_id, num_frames);
 }
 
+void Exporter::WriteRig(const std::vector<ExportClip>& views,
+                        const std::string& pair_dir,
+                        PairMeta* meta) const {
+  (void)meta;
+  ThrowInputError(views.empty() ? pair_dir : views.front().clip_id, ": ",
+                  ToString(Format()),
+                  " is single-camera (its trainer reads one camera's clips); "
+                  "drop --cameras or the format");
+}
+
 void CheckClipForExport(const Exporter& exporter,
                         const std::string& clip_id,
                         int num_frames) {

@@ -145,6 +145,9 @@ struct ExportObject {
 // non-null unless noted and outlive WriteClip.
 struct ExportClip {
   std::string clip_id;
+  // The camera channel ("CAM_FRONT", ...): set for a rig's cameras
+  // (Exporter::WriteRig), empty for a single camera.
+  std::string channel;
   // The scene the clip comes from (the key of by-scene splits).
   std::string scene_name;
   // Index of the clip in the dataset's clip list (-1 = unknown).
@@ -216,6 +219,15 @@ class Exporter {
   virtual void WriteClip(const ExportClip& clip,
                          const std::string& pair_dir,
                          PairMeta* meta) const = 0;
+  // True when the format holds several cameras of a clip (build-dataset
+  // --cameras): WriteRig then writes them.
+  virtual bool WritesRigs() const { return false; }
+  // Writes a rig pair's cameras (one ExportClip each, the reference camera
+  // first, every pose in the rig's scene frame, ExportClip::channel set).
+  // By default throws InputError: the format is single-camera.
+  virtual void WriteRig(const std::vector<ExportClip>& views,
+                        const std::string& pair_dir,
+                        PairMeta* meta) const;
   // After the clips: (re)writes the format's index under `out` (the
   // build-dataset output) from the pair folders that hold this format's
   // files. Returns the number of samples listed; a no-op (0) when no pair has

@@ -260,10 +260,96 @@ PairView MakePairView(const ViewWork& w,
   return v;
 }
 
-void WriteRigPairFolder(const std::string& dir,
-                        const std::vector<ViewWork>& views,
-                        const BuildDatasetOptions& opt,
-                        PairMeta* meta) {
+// Per exporter, its view of every camera of the rig (the reference camera
+// first): the frames at the exporter's size resized from the view's own
+// full-size decode, the camera's poses in the rig's scene frame, the fused
+// cloud, and the LiDAR sweeps and objects (read once, placed in the scene
+// frame, shared by the cameras). Only exporters that write no condition
+// serve a rig (Exporter::WritesRigs; build-dataset refuses the others).
+std::vector<std::vector<std::unique_ptr<ClipExport>>> PrepareRigExports(
+    const ClipContext& ctx,
+    const DriveClip& clip,
+    const RigScene& rig,
+    const std::vector<ViewWork>& views) {
+  const BuildDatasetOptions& opt = *ctx.options;
+  const Rigid3d scene_from_world = rig.world_from_scene.Inverse();
+  const DriveClip& reference = views.front().clip;
+  std::vector<std::vector<std::unique_ptr<ClipExport>>> out;
+  for (const auto& e : *ctx.exporters) {
+    const ExportRequirements req = e->Requirements();
+    const std::string format = ToString(e->Format());
+    GEODRIVE_CHECK_INPUT(e->WritesRigs() && !req.condition, clip.id, ": ",
+                         format, " is single-camera; drop --cameras");
+    auto lidar = std::make_shared<const std::vector<ExportSweep>>();
+    if (req.lidar_frame_step > 0) {
+      lidar = std::make_shared<const std::vector<ExportSweep>>(ClipSweeps(
+          reference, req.lidar_frame_step, scene_from_world, format));
+    }
+    auto objects =
+        std::make_shared<const std::vector<std::vector<ExportObject>>>();
+    if (req.objects) {
+      objects = std::make_shared<const std::vector<std::vector<ExportObject>>>(
+          ClipObjects(reference, scene_from_world));
+    }
+    BuildDatasetOptions eopt = opt;
+    if (req.width > 0) {
+      eopt.width = req.width;
+      eopt.height = req.height;
+      eopt.resize_mode = ResizeMode::kCenterCrop;
+    }
+    std::vector<std::unique_ptr<ClipExport>> cameras;
+    for (size_t k = 0; k < views.size(); ++k) {
+      const ViewWork& w = views[k];
+      const RigView& rv = rig.views[k];
+      auto x = std::make_unique<ClipExport>();
+      x->exporter = e.get();
+      x->lidar = lidar;
+      x->objects = objects;
+      if (req.frames) x->frames = ExportFrames(w.clip, w.frames, eopt);
+      ExportClip& ec = x->clip;
+      ec.clip_id = clip.id;
+      ec.channel = rv.channel;
+      ec.scene_name = clip.scene_name;
+      if (ctx.clip_index) {
+        const auto it = ctx.clip_index->find(clip.id);
+        if (it != ctx.clip_index->end()) ec.clip_index = it->second;
+      }
+      if (req.frames) ec.images = &x->frames.gt;
+      const PinholeCamera& source = w.clip.frames.front().camera;
+      ec.images_are_source = req.frames && eopt.width == source.width &&
+                             eopt.height == source.height;
+      for (const DriveFrame& df : w.clip.frames) {
+        ec.image_paths.push_back(df.image_path);
+        ec.timestamps_us.push_back(df.timestamp_us);
+      }
+      ec.scene_cloud = &rig.cloud;
+      ec.video_preset = opt.video_preset;
+      ec.video_crf = opt.video_crf;
+      ec.camera = rv.source.CameraAt(eopt.width, eopt.height, eopt.resize_mode);
+      ec.world_from_cam = rv.scene_from_cam;
+      ec.world_up = scene_from_world.rotation * Eigen::Vector3d::UnitZ();
+      ec.metric = rig.metric();
+      ec.boxes = &w.boxes;
+      if (req.lidar_frame_step > 0) ec.lidar = x->lidar.get();
+      if (req.objects) ec.objects = x->objects.get();
+      cameras.push_back(std::move(x));
+    }
+    out.push_back(std::move(cameras));
+  }
+  return out;
+}
+
+void WriteRigPairFolder(
+    const std::string& dir,
+    const std::vector<ViewWork>& views,
+    const BuildDatasetOptions& opt,
+    const std::vector<std::vector<std::unique_ptr<ClipExport>>>& exports,
+    PairMeta* meta) {
+  for (const auto& cameras : exports) {
+    std::vector<ExportClip> clips;
+    for (const auto& x : cameras) clips.push_back(x->clip);
+    cameras.front()->exporter->WriteRig(clips, dir, meta);
+  }
   H264Options vo;
   vo.fps = opt.fps;
   vo.preset = opt.video_preset;
@@ -378,7 +464,15 @@ PairMeta BuildRigPair(const ClipContext& ctx,
   for (int k = 0; k < clip.num_views(); ++k)
     meta.views.push_back(MakePairView(views[k], rig.views[k], opt));
   meta.seams = timer.Run("seams", [&] { return SeamCheck(rig, views, opt); });
-  timer.Run("encode", [&] { WriteRigPairFolder(tmp_dir, views, opt, &meta); });
+  std::vector<std::vector<std::unique_ptr<ClipExport>>> exports;
+  if (ctx.exporters && !ctx.exporters->empty()) {
+    exports = timer.Run("export", [&] {
+      for (const ViewWork& w : views) CheckClipForExports(ctx, w.clip);
+      return PrepareRigExports(ctx, clip, rig, views);
+    });
+  }
+  timer.Run("encode",
+            [&] { WriteRigPairFolder(tmp_dir, views, opt, exports, &meta); });
   return meta;
 }
 

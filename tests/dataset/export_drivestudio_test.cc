@@ -240,6 +240,131 @@ TEST(ExportDrivestudio, CamerasAreOursAtTheExportSize) {
   EXPECT_EQ(synthetic.size(), cv::Size(kWidth, kHeight));
 }
 
+// A six-camera rig (build-dataset --cameras all): one scene folder, each
+// camera under drivestudio's index of its channel (CAM_FRONT 0,
+// CAM_FRONT_LEFT 1, CAM_FRONT_RIGHT 2, CAM_BACK_LEFT 3, CAM_BACK_RIGHT 4,
+// CAM_BACK 5), its extrinsics the pair view's poses in the rig's frame, its
+// intrinsics the view's camera at 1600x900; the Python mirror reads all six
+// (every LiDAR return in view of any camera off its sky mask).
+TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
+  const std::string out = test::SharedFixtureDir(
+      "export_drivestudio_rig", [](const std::string& dir) {
+        SyntheticDatasetOptions w = WorldOptions();
+        w.cameras = {"CAM_FRONT",     "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT",
+                     "CAM_BACK_LEFT", "CAM_BACK_RIGHT", "CAM_BACK"};
+        WriteSyntheticDataset(w, dir + "/world");
+        BuildDatasetOptions o = Options(dir + "/out");
+        o.dataroot = dir + "/world";
+        o.cameras = {"all"};
+        const BuildDatasetSummary s = BuildDataset(o);
+        EXPECT_EQ(s.built, 1) << test::ReadFile(dir + "/out/failures.jsonl");
+      });
+  const std::string scene = out + "/out/drivestudio/000";
+  const PairMeta meta = ReadPairMeta(out + "/out/pairs/" + kClip);
+  ASSERT_EQ(meta.views.size(), 6u);
+  const char* const order[] = {"CAM_FRONT",       "CAM_FRONT_LEFT",
+                               "CAM_FRONT_RIGHT", "CAM_BACK_LEFT",
+                               "CAM_BACK_RIGHT",  "CAM_BACK"};
+  DriveDatasetOptions dopt;
+  dopt.root = out + "/world";
+  dopt.clip_frames = kFrames;
+  dopt.cameras = {"all"};
+  const DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
+  ASSERT_EQ(clip.num_views(), 6);
+  double worst_pose = 0, worst_k = 0;
+  for (size_t v = 0; v < meta.views.size(); ++v) {
+    const PairView& view = meta.views[v];
+    const int index = static_cast<int>(
+        std::find(std::begin(order), std::end(order), view.channel) -
+        std::begin(order));
+    ASSERT_LT(index, 6) << view.channel;
+    for (int t = 0; t < kFrames; ++t) {
+      const Eigen::Matrix4d got =
+          ReadMatrix(scene + "/extrinsics/" + Name(t) + "_" +
+                     std::to_string(index) + ".txt");
+      worst_pose = std::max(
+          worst_pose,
+          (got - view.world_from_cam[t].ToMatrix()).cwiseAbs().maxCoeff());
+    }
+    const PinholeCamera& full = clip.View(static_cast<int>(v)).frames[0].camera;
+    const PinholeCamera want = ApplyResizeSpec(
+        full, ComputeResizeSpec(full.width, full.height, kWidth, kHeight,
+                                ResizeMode::kCenterCrop));
+    const std::vector<double> k =
+        ReadNumbers(scene + "/intrinsics/" + std::to_string(index) + ".txt");
+    ASSERT_EQ(k.size(), 9u);
+    worst_k =
+        std::max({worst_k, std::abs(k[0] - want.fx), std::abs(k[1] - want.fy),
+                  std::abs(k[2] - want.cx), std::abs(k[3] - want.cy)});
+  }
+  std::printf(
+      "six cameras: extrinsics within %.2g of the views' poses, "
+      "intrinsics within %.2g px\n",
+      worst_pose, worst_k);
+  EXPECT_LT(worst_pose, 1e-12);
+  EXPECT_LT(worst_k, 1e-9);
+  EXPECT_TRUE(ReadMatrix(scene + "/extrinsics/000_0.txt")
+                  .isApprox(Eigen::Matrix4d::Identity(), 1e-12));
+  GEODRIVE_REQUIRE_PYTHON_MODULE("cv2");
+  std::string log;
+  EXPECT_EQ(
+      test::RunCommand(std::string(test::kDebianPython) +
+                           " " GEODRIVE_SOURCE_DIR
+                           "/tests/dataset/drivestudio_loader_check.py " +
+                           scene + " 0,1,2,3,4,5 " + std::to_string(kFrames),
+                       &log),
+      0)
+      << log;
+  std::printf("synthetic rig: %s", log.c_str());
+}
+
+// The real scene-0916's six cameras, its first 9 keyframes: the Python
+// mirror reads every camera; every image is its source JPEG.
+TEST(ExportDrivestudio, RealScene0916RigReadsBackInSixCameras) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("cv2");
+  const std::string out = test::SharedFixtureDir(
+      "export_drivestudio_real_rig", [](const std::string& dir) {
+        BuildDatasetOptions o;
+        o.dataroot = test::RealDataPath("nuscenes_scene0916");
+        o.version = "v1.0-mini-extract";
+        o.frames = ClipFrameSource::kKeyframes;
+        o.geometry = "lidar";
+        o.out = dir;
+        o.quiet = true;
+        o.clip_frames = 9;
+        o.max_clips = 1;
+        o.width = 256;
+        o.height = 144;
+        o.cameras = {"all"};
+        o.exports = {ExportFormat::kDrivestudio};
+        const BuildDatasetSummary s = BuildDataset(o);
+        EXPECT_EQ(s.built, 1) << test::ReadFile(dir + "/failures.jsonl");
+      });
+  const std::string scene = out + "/drivestudio/000";
+  std::string log;
+  EXPECT_EQ(test::RunCommand(std::string(test::kDebianPython) +
+                                 " " GEODRIVE_SOURCE_DIR
+                                 "/tests/dataset/drivestudio_loader_check.py " +
+                                 scene + " 0,1,2,3,4,5 9",
+                             &log),
+            0)
+      << log;
+  std::printf("scene-0916 rig: %s", log.c_str());
+  const PairMeta meta =
+      ReadPairMeta(out + "/pairs/" +
+                   nlohmann::json::parse(
+                       test::ReadFile(out + "/drivestudio/scenes.json"))["000"]
+                       .get<std::string>());
+  ASSERT_EQ(meta.views.size(), 6u);
+  // CAM_BACK is drivestudio's camera 5: its images are its own JPEGs.
+  for (const PairView& v : meta.views) {
+    if (v.channel != "CAM_BACK") continue;
+    EXPECT_EQ(test::ReadFile(scene + "/images/000_5.jpg"),
+              test::ReadFile(test::RealDataPath("nuscenes_scene0916") + "/" +
+                             v.frames.front().filename));
+  }
+}
+
 // LiDAR returns of frames 0, 6, 12 (lidar_pose @ [x, y, z, 1]) projected
 // with inv(extrinsics) and K: the true depth through that pixel at the
 // sweep's time equals the point's camera z (1e-3 relative) for most, and is
