@@ -278,8 +278,10 @@ void AddPairOptions(CLI::App& app, Args& a) {
                  "intrinsics at 1280x720, LiDAR and boxes; --clip-frames 121 "
                  "or more, taken as 30 Hz), drivestudio (drivestudio's "
                  "nuScenes layout: OUT/drivestudio/%03d/ per clip, CAM_FRONT "
-                 "as camera 0: images at 1600x900, LiDAR, sky and dynamic "
-                 "masks, instances); none")
+                 "as camera 0, with --cameras every camera under its "
+                 "drivestudio index: images at 1600x900, LiDAR, sky and "
+                 "dynamic masks, instances); none. Only drivestudio takes "
+                 "--cameras")
       ->capture_default_str();
   app.add_option("--val-fraction", o.export_options.val_fraction,
                  "Exports with train/val lists (streetcrafter, rds-hq): "
