@@ -318,6 +318,24 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
   std::printf("synthetic rig: %s", log.c_str());
 }
 
+// Every other format is single-camera: with --cameras the options are
+// refused before anything is built, naming the format.
+TEST(ExportDrivestudio, OnlyDrivestudioTakesARig) {
+  BuildDatasetOptions o = Options("unused");
+  o.cameras = {"all"};
+  EXPECT_NO_THROW(o.Check());
+  o.exports = {ExportFormat::kDrivestudio, ExportFormat::kStreetCrafter};
+  try {
+    o.Check();
+    ADD_FAILURE() << "streetcrafter with --cameras was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--export streetcrafter is "
+                                         "single-camera"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // The real scene-0916's six cameras, its first 9 keyframes: the Python
 // mirror reads every camera; every image is its source JPEG.
 TEST(ExportDrivestudio, RealScene0916RigReadsBackInSixCameras) {
