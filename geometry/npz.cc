@@ -314,44 +314,62 @@ zip_buffer_fragment_t Fragment(const void* data, size_t size) {
 
 }  // namespace
 
+namespace {
+
+// One .npy member given as its header (or its whole file) and the data's
+// pieces after it.
+struct NpyMember {
+  std::string name;  // without ".npy"
+  std::string head;
+  std::vector<std::pair<const void*, size_t>> pieces;
+};
+
+void WriteNpyMembers(const std::string& path,
+                     const std::vector<NpyMember>& npy,
+                     bool compress) {
+  std::vector<ZipMember> members(npy.size());
+  for (size_t i = 0; i < npy.size(); ++i) {
+    members[i].name = npy[i].name + ".npy";
+    members[i].fragments.push_back(
+        Fragment(npy[i].head.data(), npy[i].head.size()));
+    for (const auto& [data, size] : npy[i].pieces) {
+      if (size > 0) members[i].fragments.push_back(Fragment(data, size));
+    }
+  }
+  WriteZipMembers(path, members, compress);
+}
+
+}  // namespace
+
 void WriteNpz(const std::string& path,
               const std::vector<std::pair<std::string, NpyArray>>& arrays,
               bool compress) {
   // Each member is the .npy file (format 1.0) WriteNpy would write: its
   // header, then the array's own bytes where they are stored as they are
   // (no copy of the data), else the whole file built in memory.
-  std::vector<std::string> heads(arrays.size());
-  std::vector<ZipMember> members(arrays.size());
-  for (size_t i = 0; i < arrays.size(); ++i) {
-    const auto& [name, array] = arrays[i];
+  std::vector<NpyMember> members;
+  for (const auto& [name, array] : arrays) {
     const std::string what = path + ":" + name;
-    members[i].name = name + ".npy";
+    NpyMember m{name, {}, {}};
     if (NpyDataIsStoredAsIs(array)) {
-      heads[i] = NpyFileHeader(what, array);
-      members[i].fragments.push_back(
-          Fragment(heads[i].data(), heads[i].size()));
-      if (!array.bytes.empty()) {
-        members[i].fragments.push_back(
-            Fragment(array.bytes.data(), array.bytes.size()));
-      }
+      m.head = NpyFileHeader(what, array);
+      m.pieces.emplace_back(array.bytes.data(), array.bytes.size());
     } else {
-      heads[i] = SerializeNpy(what, array);
-      members[i].fragments.push_back(
-          Fragment(heads[i].data(), heads[i].size()));
+      m.head = SerializeNpy(what, array);
     }
+    members.push_back(std::move(m));
   }
-  WriteZipMembers(path, members, compress);
+  WriteNpyMembers(path, members, compress);
 }
 
 void WriteNpz(const std::string& path,
               const std::vector<std::pair<std::string, NpyPieces>>& arrays,
               bool compress) {
-  std::vector<std::string> heads(arrays.size());
-  std::vector<ZipMember> members(arrays.size());
-  for (size_t i = 0; i < arrays.size(); ++i) {
-    const auto& [name, array] = arrays[i];
+  std::vector<NpyMember> members;
+  for (const auto& [name, array] : arrays) {
     const std::string what = path + ":" + name;
-    heads[i] = NpyFileHeader(what, array.dtype, array.shape);
+    NpyMember m{name, NpyFileHeader(what, array.dtype, array.shape),
+                array.pieces};
     uint64_t held = 0;
     for (const auto& [data, size] : array.pieces) held += size;
     uint64_t count = 1;
@@ -359,13 +377,9 @@ void WriteNpz(const std::string& path,
     const uint64_t needed = count * NpyDtypeSize(array.dtype);
     GEODRIVE_CHECK_INPUT(held == needed, what, ": the pieces hold ", held,
                          " bytes but the shape needs ", needed);
-    members[i].name = name + ".npy";
-    members[i].fragments.push_back(Fragment(heads[i].data(), heads[i].size()));
-    for (const auto& [data, size] : array.pieces) {
-      if (size > 0) members[i].fragments.push_back(Fragment(data, size));
-    }
+    members.push_back(std::move(m));
   }
-  WriteZipMembers(path, members, compress);
+  WriteNpyMembers(path, members, compress);
 }
 
 bool LooksLikeZip(const std::string& path) {

@@ -85,21 +85,28 @@ const std::string& Export() {
   return out;
 }
 
+// A drivestudio export of the real scene-0916's keyframes, clips of
+// `frames`, into `dir`.
+BuildDatasetOptions RealOptions(const std::string& dir, int frames) {
+  BuildDatasetOptions o;
+  o.dataroot = test::RealDataPath("nuscenes_scene0916");
+  o.version = "v1.0-mini-extract";
+  o.frames = ClipFrameSource::kKeyframes;
+  o.geometry = "lidar";
+  o.out = dir;
+  o.quiet = true;
+  o.clip_frames = frames;
+  o.width = 256;
+  o.height = 144;
+  o.exports = {ExportFormat::kDrivestudio};
+  return o;
+}
+
 // The real scene-0916, its 41 keyframes as one clip.
 const std::string& RealExport() {
   static const std::string out = test::SharedFixtureDir(
       "export_drivestudio_real", [](const std::string& dir) {
-        BuildDatasetOptions o;
-        o.dataroot = test::RealDataPath("nuscenes_scene0916");
-        o.version = "v1.0-mini-extract";
-        o.frames = ClipFrameSource::kKeyframes;
-        o.geometry = "lidar";
-        o.out = dir;
-        o.quiet = true;
-        o.clip_frames = 41;
-        o.width = 256;
-        o.height = 144;
-        o.exports = {ExportFormat::kDrivestudio};
+        const BuildDatasetOptions o = RealOptions(dir, 41);
         const BuildDatasetSummary s = BuildDataset(o);
         std::printf("drivestudio export of scene-0916: %s\n",
                     s.BriefReport().c_str());
@@ -342,19 +349,9 @@ TEST(ExportDrivestudio, RealScene0916RigReadsBackInSixCameras) {
   GEODRIVE_REQUIRE_PYTHON_MODULE("cv2");
   const std::string out = test::SharedFixtureDir(
       "export_drivestudio_real_rig", [](const std::string& dir) {
-        BuildDatasetOptions o;
-        o.dataroot = test::RealDataPath("nuscenes_scene0916");
-        o.version = "v1.0-mini-extract";
-        o.frames = ClipFrameSource::kKeyframes;
-        o.geometry = "lidar";
-        o.out = dir;
-        o.quiet = true;
-        o.clip_frames = 9;
+        BuildDatasetOptions o = RealOptions(dir, 9);
         o.max_clips = 1;
-        o.width = 256;
-        o.height = 144;
         o.cameras = {"all"};
-        o.exports = {ExportFormat::kDrivestudio};
         const BuildDatasetSummary s = BuildDataset(o);
         EXPECT_EQ(s.built, 1) << test::ReadFile(dir + "/failures.jsonl");
       });
