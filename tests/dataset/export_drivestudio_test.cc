@@ -293,7 +293,8 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
           worst_pose,
           (got - view.world_from_cam[t].ToMatrix()).cwiseAbs().maxCoeff());
     }
-    const PinholeCamera& full = clip.View(static_cast<int>(v)).frames[0].camera;
+    const PinholeCamera full =
+        clip.View(static_cast<int>(v)).frames.front().camera;
     const PinholeCamera want = ApplyResizeSpec(
         full, ComputeResizeSpec(full.width, full.height, kWidth, kHeight,
                                 ResizeMode::kCenterCrop));
