@@ -253,6 +253,7 @@ TEST(ExportDrivestudio, CamerasAreOursAtTheExportSize) {
 // CAM_BACK 5), its extrinsics the pair view's poses in the rig's frame, its
 // intrinsics the view's camera at 1600x900; the Python mirror reads all six
 // (every LiDAR return in view of any camera off its sky mask).
+constexpr int kRigFrames = 5;  // six cameras' frames at 1600x900 each
 TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
   const std::string out = test::SharedFixtureDir(
       "export_drivestudio_rig", [](const std::string& dir) {
@@ -263,6 +264,7 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
         BuildDatasetOptions o = Options(dir + "/out");
         o.dataroot = dir + "/world";
         o.cameras = {"all"};
+        o.clip_frames = kRigFrames;
         const BuildDatasetSummary s = BuildDataset(o);
         EXPECT_EQ(s.built, 1) << test::ReadFile(dir + "/out/failures.jsonl");
       });
@@ -274,7 +276,7 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
                                "CAM_BACK_RIGHT",  "CAM_BACK"};
   DriveDatasetOptions dopt;
   dopt.root = out + "/world";
-  dopt.clip_frames = kFrames;
+  dopt.clip_frames = kRigFrames;
   dopt.cameras = {"all"};
   const DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
   ASSERT_EQ(clip.num_views(), 6);
@@ -285,7 +287,7 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
         std::find(std::begin(order), std::end(order), view.channel) -
         std::begin(order));
     ASSERT_LT(index, 6) << view.channel;
-    for (int t = 0; t < kFrames; ++t) {
+    for (int t = 0; t < kRigFrames; ++t) {
       const Eigen::Matrix4d got =
           ReadMatrix(scene + "/extrinsics/" + Name(t) + "_" +
                      std::to_string(index) + ".txt");
@@ -319,7 +321,7 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
       test::RunCommand(std::string(test::kDebianPython) +
                            " " GEODRIVE_SOURCE_DIR
                            "/tests/dataset/drivestudio_loader_check.py " +
-                           scene + " 0,1,2,3,4,5 " + std::to_string(kFrames),
+                           scene + " 0,1,2,3,4,5 " + std::to_string(kRigFrames),
                        &log),
       0)
       << log;
