@@ -569,6 +569,25 @@ bool AtPairSize(const ExportRequirements& req, const BuildDatasetOptions& opt) {
 
 }  // namespace
 
+void SetExportClipSource(const ClipContext& ctx,
+                         const std::string& clip_id,
+                         const std::string& scene_name,
+                         const DriveClip& frames,
+                         ExportClip* ec) {
+  ec->clip_id = clip_id;
+  ec->scene_name = scene_name;
+  if (ctx.clip_index) {
+    const auto it = ctx.clip_index->find(clip_id);
+    if (it != ctx.clip_index->end()) ec->clip_index = it->second;
+  }
+  for (const DriveFrame& df : frames.frames) {
+    ec->image_paths.push_back(df.image_path);
+    ec->timestamps_us.push_back(df.timestamp_us);
+  }
+  ec->video_preset = ctx.options->video_preset;
+  ec->video_crf = ctx.options->video_crf;
+}
+
 ClipFrames ExportFrames(const DriveClip& clip,
                         const ClipFrames& pair,
                         const BuildDatasetOptions& eopt) {
@@ -688,15 +707,8 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
     const PinholeCamera& source = clip.frames.front().camera;
     ec.images_are_source = f != nullptr && eopt.width == source.width &&
                            eopt.height == source.height;
-    ec.clip_id = clip.id;
-    ec.scene_name = clip.scene_name;
-    if (ctx.clip_index) {
-      const auto it = ctx.clip_index->find(clip.id);
-      if (it != ctx.clip_index->end()) ec.clip_index = it->second;
-    }
+    SetExportClipSource(ctx, clip.id, clip.scene_name, clip, &ec);
     if (f) ec.images = &f->gt;
-    for (const DriveFrame& df : clip.frames)
-      ec.image_paths.push_back(df.image_path);
     ec.scene_cloud = &scene.cloud;
     if (c) ec.condition = &c->frames;
     if (req.depth && c) {
@@ -706,12 +718,8 @@ std::vector<std::unique_ptr<ClipExport>> PrepareClipExports(
     if (req.native_condition) ec.native_condition = &cond.native_frames;
     if (!frames.full.empty()) ec.first_frame_full = frames.full.front();
     ec.first_frame_path = frames.first_frame_path;
-    ec.video_preset = opt.video_preset;
-    ec.video_crf = opt.video_crf;
     ec.camera = scene.CameraAt(eopt.width, eopt.height, eopt.resize_mode);
     ec.world_from_cam = scene.trajectory.world_from_cam;
-    for (const DriveFrame& df : clip.frames)
-      ec.timestamps_us.push_back(df.timestamp_us);
     ec.world_up = scene_from_world.rotation * Eigen::Vector3d::UnitZ();
     ec.metric = scene.metric();
     ec.boxes = b;

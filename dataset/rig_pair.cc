@@ -307,24 +307,13 @@ std::vector<std::vector<std::unique_ptr<ClipExport>>> PrepareRigExports(
       x->objects = objects;
       if (req.frames) x->frames = ExportFrames(w.clip, w.frames, eopt);
       ExportClip& ec = x->clip;
-      ec.clip_id = clip.id;
+      SetExportClipSource(ctx, clip.id, clip.scene_name, w.clip, &ec);
       ec.channel = rv.channel;
-      ec.scene_name = clip.scene_name;
-      if (ctx.clip_index) {
-        const auto it = ctx.clip_index->find(clip.id);
-        if (it != ctx.clip_index->end()) ec.clip_index = it->second;
-      }
       if (req.frames) ec.images = &x->frames.gt;
       const PinholeCamera& source = w.clip.frames.front().camera;
       ec.images_are_source = req.frames && eopt.width == source.width &&
                              eopt.height == source.height;
-      for (const DriveFrame& df : w.clip.frames) {
-        ec.image_paths.push_back(df.image_path);
-        ec.timestamps_us.push_back(df.timestamp_us);
-      }
       ec.scene_cloud = &rig.cloud;
-      ec.video_preset = opt.video_preset;
-      ec.video_crf = opt.video_crf;
       ec.camera = rv.source.CameraAt(eopt.width, eopt.height, eopt.resize_mode);
       ec.world_from_cam = rv.scene_from_cam;
       ec.world_up = scene_from_world.rotation * Eigen::Vector3d::UnitZ();

@@ -258,6 +258,14 @@ struct ClipExport {
 // Checks the clip against every exporter's requirements (the error names the
 // first unmet one).
 void CheckClipForExports(const ClipContext& ctx, const DriveClip& clip);
+// An exporter's view's fields that come from the clip and the run: its id,
+// scene and index in the clip list, each frame's source image and time (from
+// `frames`, the camera's clip), the pair videos' x264 settings.
+void SetExportClipSource(const ClipContext& ctx,
+                         const std::string& clip_id,
+                         const std::string& scene_name,
+                         const DriveClip& frames,
+                         ExportClip* ec);
 // The clip's frames at an exporter's size (`eopt`'s), resized from full-size
 // decodes: the pair's own (ClipFrames::full: every frame for the LiDAR scene
 // sources) where it holds them, else each read here. Always the full decode
