@@ -5,7 +5,8 @@
 //
 //   rgb.mp4      the camera frames, H.264 at the pair videos' --x264-preset
 //                and --crf (read with cv2.VideoCapture,
-//                data_loader_utils.py:142-153)
+//                data_loader_utils.py:142-153); built at GEN3C's size, a
+//                hard link to the pair's gt.mp4
 //   depth.npz    depth (T,H,W) float32: the condition's z-depth in metres,
 //                0 where no point was drawn or beyond 100 m (GEN3C maps NaN
 //                to 100 and clamps to [0, 100]: cache_3d.py:107-108)
@@ -108,6 +109,23 @@ void WriteCameras(const std::string& dir, const ExportClip& clip) {
             {"intrinsics", NpyArray::Float32({t, 3, 3}, k.data())}});
 }
 
+// rgb.mp4: a hard link to the pair's video of the same frames where there is
+// one (built at 704x1280 centre-cropped; it plays at the pair's --fps, which
+// the loader does not read), else the frames encoded at kFps.
+void WriteRgbVideo(const std::string& path, const ExportClip& clip) {
+  if (!clip.images_video.empty()) {
+    std::error_code ec;
+    fs::remove(path, ec);
+    fs::create_hard_link(clip.images_video, path, ec);
+    if (!ec) return;
+  }
+  H264Options vo;
+  vo.fps = kFps;
+  vo.preset = clip.video_preset;
+  vo.crf = clip.video_crf;
+  WriteH264Mp4(path, *clip.images, vo);
+}
+
 class Gen3cExporter : public Exporter {
  public:
   ExportFormat Format() const override { return ExportFormat::kGen3c; }
@@ -141,11 +159,7 @@ class Gen3cExporter : public Exporter {
     }
     const std::string dir = pair_dir + "/" + kFolder;
     fs::create_directories(dir);
-    H264Options vo;
-    vo.fps = kFps;
-    vo.preset = clip.video_preset;
-    vo.crf = clip.video_crf;
-    WriteH264Mp4(dir + "/rgb.mp4", *clip.images, vo);
+    WriteRgbVideo(dir + "/rgb.mp4", clip);
     WriteDepthAndMask(dir, clip);
     WriteCameras(dir, clip);
     meta->files[kFolder] = kFolder;

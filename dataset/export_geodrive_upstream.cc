@@ -19,6 +19,7 @@
 #include "dataset/internal/pair_png.h"
 #include "dataset/pairs.h"
 #include "geometry/image_io.h"
+#include "geometry/image_resize.h"
 #include "geometry/util/files.h"
 #include "geometry/util/status.h"
 
@@ -44,8 +45,13 @@ void WriteUpstreamFrames(const std::string& dir, const ExportClip& clip) {
     const cv::Mat& src = i == 0 ? real : native[i];
     cv::Mat f = src;
     if (f.size() != size) {
-      cv::resize(src, f, size, 0, 0,
-                 src.cols > size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
+      // Shrinking: INTER_AREA's weights, several times faster than
+      // cv::resize at the non-integer 1600x900 -> 1024x576.
+      f = src.cols >= size.width && src.rows >= size.height &&
+                  src.type() == CV_8UC3
+              ? AreaResizeRgb(src, src.cols, src.rows, size)
+              : cv::Mat();
+      if (f.empty()) cv::resize(src, f, size, 0, 0, cv::INTER_LINEAR);
     }
     WritePairPng(up + "/render_" + std::to_string(i) + ".png", f,
                  i == 0 ? PngContent::kPhoto : PngContent::kRender);

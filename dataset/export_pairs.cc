@@ -147,7 +147,14 @@ void ExportPair(const std::string& out,
   const std::string tmp = pair_dir + "/.export-tmp";
   fs::remove_all(tmp);
   fs::create_directories(tmp);
-  for (const auto& x : exports) x->exporter->WriteClip(x->clip, tmp, &meta);
+  for (const auto& x : exports) {
+    // The pair's gt.mp4 is the video of its frames when the export takes
+    // them (same decode, preset and CRF).
+    const std::string gt = pair_dir + "/gt.mp4";
+    if (x->clip.images == &frames.gt && fs::is_regular_file(gt))
+      x->clip.images_video = gt;
+    x->exporter->WriteClip(x->clip, tmp, &meta);
+  }
   for (const auto& e : fs::directory_iterator(tmp)) {
     const fs::path target = fs::path(pair_dir) / e.path().filename();
     fs::remove_all(target);

@@ -17,9 +17,13 @@
 //   lidar/color_render/%06d_0.png     the guidance: our condition (the
 //                                     scene's points coloured from the
 //                                     images, on black)
-//   lidar/color_render/%06d_0_mask.png  8-bit gray, 255 = a point was drawn
-//                                     (waymo_render_lidar_pcd.py:266,276-277;
-//                                     not read by the video trainer)
+//   lidar/color_render/%06d_0_mask.png  1-bit gray, 1 = a point was drawn
+//                                     (upstream writes 8-bit 0/255,
+//                                     waymo_render_lidar_pcd.py:266,276-277;
+//                                     the Waymo trainer does not read it, the
+//                                     PandaSet one opens it with PIL and
+//                                     convert("RGB"), which gives 0/255 from
+//                                     either: pandaset.py:58-77,110-115)
 //   lidar/depth/%06d_0.npz            metric scenes only: {mask (H,W) bool,
 //                                     value float32 1-D = depth[mask], camera
 //                                     z-depth in metres clipped to [0.1, 100]}
@@ -132,8 +136,7 @@ class StreetCrafterExporter : public Exporter {
       const std::string render = dir + "/lidar/color_render/";
       WritePairPng(render + FrameName(i, ".png"), guidance,
                    PngContent::kRender);
-      WritePairPng(render + FrameName(i, "_mask.png"), (*clip.drawn)[i],
-                   PngContent::kRender);
+      WriteMaskPng(render + FrameName(i, "_mask.png"), (*clip.drawn)[i]);
       if (clip.metric) {
         WriteDepthNpz(dir + "/lidar/depth/" + FrameName(i, ".npz"),
                       (*clip.depth)[i]);

@@ -165,6 +165,12 @@ struct ExportClip {
   // is the source's, nothing cropped): an exporter may then copy a source
   // JPEG's bytes (ReadImageFile) instead of encoding the frame again.
   bool images_are_source = false;
+  // A video (H.264 MP4) already written of exactly `images`, at the pair
+  // videos' preset and CRF and at the pair's --fps: the pair's gt.mp4 when
+  // `images` are the pair's own frames (the exporter's size is the pair's);
+  // empty otherwise. An exporter may link it instead of encoding the frames
+  // again.
+  std::string images_video;
   // The clip's condition scene, in the same frame as world_from_cam.
   const PointCloud* scene_cloud = nullptr;
   // With ExportRequirements::depth: the condition's z-depth per frame

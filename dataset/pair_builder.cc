@@ -299,9 +299,8 @@ ConditionRender RenderConditionView(const ViewToRender& view,
   out.frames = FinalFrames(
       result, preset,
       preset == RenderPreset::kGeodriveCompat ? gt.front() : cv::Mat());
-  if (keep.native_frames) {
-    for (const cv::Mat& f : out.frames) out.native_frames.push_back(f.clone());
-  }
+  // Shared, not copied: a frame resized below is replaced, never written.
+  if (keep.native_frames) out.native_frames = out.frames;
   if (keep.depth) {
     for (int i = 0; i < n; ++i) {
       const RenderedFrame& r = result.frames[i];
@@ -466,7 +465,10 @@ void WritePairFolder(const std::string& dir,
     WritePairPng(dir + "/completion.png", cond.completion_preview);
     meta->files["completion_preview"] = "completion.png";
   }
-  for (const auto& x : exports) x->exporter->WriteClip(x->clip, dir, meta);
+  for (const auto& x : exports) {
+    if (x->clip.images == &gt) x->clip.images_video = dir + "/gt.mp4";
+    x->exporter->WriteClip(x->clip, dir, meta);
+  }
   meta->files["gt"] = "gt.mp4";
   meta->files["cond"] = "cond.mp4";
   meta->files["first_frame"] = "first_frame.png";

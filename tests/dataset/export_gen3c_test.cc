@@ -20,6 +20,7 @@
 #include "dataset/synthetic/synthetic_world.h"
 #include "geometry/npz.h"
 #include "geometry/util/status.h"
+#include "render/video/video_io.h"
 #include "tests/common/test_util.h"
 #include "tests/dataset/export_gen3c_fixture.h"
 
@@ -277,6 +278,45 @@ TEST(ExportGen3c, RealScene0916KeyframeClipIsRefused) {
               clip.id +
                   ": gen3c needs 121, 241, ... frames (120 N + 1); this clip "
                   "has 41");
+  }
+}
+
+// Built at GEN3C's own size and framing (704x1280, centre crop), the pair's
+// render serves the export and rgb.mp4 is the pair's gt.mp4 (a hard link: the
+// same frames at the same preset and CRF, not encoded twice), 121 frames at
+// 1280x704 as the loader reads them (cv2.VideoCapture, which the other tests'
+// mirror runs on the default-size export); the exported mask covers what the
+// pair's condition covers.
+TEST(ExportGen3cAtItsSize, RgbVideoIsThePairsOwn) {
+  const std::string out = test::MakeTempDir("export_gen3c_own_size");
+  BuildDatasetOptions o = Options(out);
+  o.width = kWidth;
+  o.height = kHeight;
+  o.resize_mode = ResizeMode::kCenterCrop;
+  const BuildDatasetSummary s = BuildDataset(o);
+  ASSERT_EQ(s.built, 1) << test::ReadFile(out + "/failures.jsonl");
+  const std::string pair = out + "/pairs/" + kClip;
+  const std::string rgb = pair + "/gen3c/rgb.mp4";
+  EXPECT_TRUE(fs::equivalent(rgb, pair + "/gt.mp4"));
+  EXPECT_EQ(fs::hard_link_count(rgb), 2u);
+  VideoFrameStream video(rgb);
+  cv::Mat frame;
+  int frames = 0;
+  while (video.Next(&frame)) {
+    ASSERT_EQ(frame.size(), cv::Size(kWidth, kHeight)) << "frame " << frames;
+    ++frames;
+  }
+  EXPECT_EQ(frames, kFrames);
+  const PairMeta meta = ReadPairMeta(pair);
+  const NpyArray mask = NpzReader(pair + "/gen3c/mask.npz").Read("mask");
+  ASSERT_EQ(mask.shape, (std::vector<int64_t>{kFrames, kHeight, kWidth}));
+  const int64_t n = int64_t{kWidth} * kHeight;
+  for (int t : {0, kFrames / 2, kFrames - 1}) {
+    const uint8_t* m = mask.Data<uint8_t>() + t * n;
+    const double drawn = static_cast<double>(std::count(m, m + n, 1)) / n;
+    std::printf("frame %d: mask %.6f, pair coverage %.6f\n", t, drawn,
+                meta.quality.coverage[t]);
+    EXPECT_NEAR(drawn, meta.quality.coverage[t], 1e-6) << "frame " << t;
   }
 }
 

@@ -9,6 +9,7 @@ docs/reference/trainer-formats.md §2), and its LiDAR depth as the 3DGS stage do
   __getitem__: frames[i], guidances[i] for i < 25 (waymo.py:97-112)
   each image: PIL open, convert("RGB"), crop to the target aspect (wider: centre columns;
     taller: the bottom rows), LANCZOS resize to the target, ToTensor()*2-1 (waymo.py:58-77)
+  guidances_mask[i]: read as the PandaSet loader reads it (pandaset.py:110-115): 0 or 1
   depth npz: mask -> bool (H, W), value float32, depth[mask] = value
 
 Usage: streetcrafter_loader_check.py DATA_ROOT EXPECTED_SAMPLES
@@ -76,8 +77,12 @@ def main():
                 frame, same_f = load_image(os.path.join(root, item["frames"][i]))
                 guidance, same_g = load_image(os.path.join(root, item["guidances"][i]))
                 assert same_f and same_g, "crop/resize is not the identity"
-                mask = np.asarray(Image.open(os.path.join(root, item["guidances_mask"][i])))
-                assert mask.dtype == np.uint8 and mask.ndim == 2
+                # The mask as the PandaSet loader takes it (pandaset.py:110-115): the image
+                # path above, then channel 0 of ToTensor(), in [0, 1].
+                mask, same_m = load_image(os.path.join(root, item["guidances_mask"][i]))
+                assert same_m, "crop/resize of the mask is not the identity"
+                mask = (mask[..., 0] + 1.0) / 2.0
+                assert set(np.unique(mask)) <= {0.0, 1.0}, np.unique(mask)
                 # Black (-1 in the model's range) wherever nothing was drawn.
                 assert np.all(guidance[mask == 0] == -1.0)
                 depth = check_depth(root, item["guidances"][i])
