@@ -280,8 +280,9 @@ void AddPairOptions(CLI::App& app, Args& a) {
                  "nuScenes layout: OUT/drivestudio/%03d/ per clip, CAM_FRONT "
                  "as camera 0, with --cameras every camera under its "
                  "drivestudio index: images at 1600x900, LiDAR, sky and "
-                 "dynamic masks, instances); none. Only drivestudio takes "
-                 "--cameras")
+                 "dynamic masks, instances); none. Only drivestudio and "
+                 "rds-hq (with --cameras all: the six cameras as "
+                 "rds_hq_mv's) take --cameras")
       ->capture_default_str();
   app.add_option("--val-fraction", o.export_options.val_fraction,
                  "Exports with train/val lists (streetcrafter, rds-hq): "

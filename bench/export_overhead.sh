@@ -12,13 +12,18 @@
 #    --geometry lidar): none, streetcrafter, drivestudio, geodrive-upstream;
 #  - one synthetic 121-frame clip at 12 Hz (`geodrive synth --duration 10.5`,
 #    1600x900, made here; --clip-frames 121): none, gen3c, rds-hq.
+# Each format is measured twice against a build without export at the same
+# --size: with the pair at the size the export writes (the trainer's:
+# streetcrafter 320x576, drivestudio 900x1600, geodrive-upstream 576x1024,
+# gen3c 704x1280; the pair's render then serves it), and at the default
+# 480x720 (an export at another size renders the condition again).
 # REPEAT rounds (default 3) run every build once in turn, and each build's
 # least process CPU counts (a shared machine's noise only adds time).
 # Environment: MAX_CLIPS (default 3, real scene), REPEAT, CORE (pin to this
 # core).
 set -euo pipefail
 if [[ $# -lt 1 ]]; then
-  sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
   exit 2
 fi
 GEODRIVE=$1
@@ -84,14 +89,27 @@ ratio() {
     "$(echo "$p - $b" | bc -l)"
 }
 
-echo "real scene-0916, keyframe clips of 25 frames, --geometry lidar:"
 real=(--dataroot "$REAL" --version v1.0-mini-extract --frames keyframes --geometry lidar
   --max-clips "$MAX_CLIPS")
-rounds real "${real[@]}" -- none streetcrafter drivestudio geodrive-upstream
-for f in streetcrafter drivestudio geodrive-upstream; do ratio real_none "real_$f"; done
-
-echo "synthetic, one clip of 121 frames at 12 Hz, --geometry lidar:"
 "$GEODRIVE" synth --out "$work/synth" --scenes 1 --duration 10.5 >/dev/null
 synth=(--dataroot "$work/synth" --geometry lidar --clip-frames 121 --max-clips 1)
+
+echo "== at each trainer's own size (the pair built at the size the export writes)"
+echo "real scene-0916, keyframe clips of 25 frames, --geometry lidar:"
+rounds sc "${real[@]}" --size 320x576 --resize-mode center-crop -- none streetcrafter
+ratio sc_none sc_streetcrafter
+rounds ds "${real[@]}" --size 900x1600 --resize-mode center-crop -- none drivestudio
+ratio ds_none ds_drivestudio
+rounds up "${real[@]}" --size 576x1024 -- none geodrive-upstream
+ratio up_none up_geodrive-upstream
+echo "synthetic, one clip of 121 frames at 12 Hz, --geometry lidar:"
+rounds g3 "${synth[@]}" --size 704x1280 --resize-mode center-crop -- none gen3c
+ratio g3_none g3_gen3c
+
+echo "== at build-dataset's default size (480x720: an export at another size renders again)"
+echo "real scene-0916, keyframe clips of 25 frames, --geometry lidar:"
+rounds real "${real[@]}" -- none streetcrafter drivestudio geodrive-upstream
+for f in streetcrafter drivestudio geodrive-upstream; do ratio real_none "real_$f"; done
+echo "synthetic, one clip of 121 frames at 12 Hz, --geometry lidar:"
 rounds synth "${synth[@]}" -- none gen3c rds-hq
 for f in gen3c rds-hq; do ratio synth_none "synth_$f"; done

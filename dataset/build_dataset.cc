@@ -185,7 +185,7 @@ void BuildDatasetOptions::Check() const {
           CreateExporter(format, export_options)->WritesRigs(),
           "build-dataset: --export ", ToString(format),
           " is single-camera (its trainer reads one camera's clips); drop "
-          "--cameras or that format (drivestudio takes a rig)");
+          "--cameras or that format (drivestudio and rds-hq take a rig)");
     }
   }
   CheckLateralOffsets(*this);

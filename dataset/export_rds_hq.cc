@@ -7,11 +7,11 @@
 // with a dot are refused). Per clip, PAIR/rds_hq/<field>/<clip>.tar (linked
 // as OUT/rds_hq/<field>/<clip>.tar):
 //
-//   pose/               %06d.pose.camera_front_wide_120fov.npy  (4,4) float64
-//                       world_from_cam, OpenCV axes, one per frame 0..N-1
-//                       (render_from_rds_hq.py:84-92,357)
-//   pinhole_intrinsic/  pinhole_intrinsic.camera_front_wide_120fov.npy (6,)
-//                       float64 [fx, fy, cx, cy, 1280, 720]: our camera
+//   pose/               %06d.pose.<camera>.npy  (4,4) float64 world_from_cam,
+//                       OpenCV axes, one per frame 0..N-1 and camera
+//                       (render_from_rds_hq.py:79-92,357)
+//   pinhole_intrinsic/  pinhole_intrinsic.<camera>.npy (6,) float64
+//                       [fx, fy, cx, cy, 1280, 720]: our camera
 //                       centre-cropped to 16:9 at the renderer's
 //                       RESIZE_RESOLUTION, so that it rescales nothing
 //                       (utils/camera/pinhole.py:58-71)
@@ -25,7 +25,12 @@
 //                       MINIMAP_TYPES: we have no HD map
 //                       (config/dataset_rds_hq.json:3-12)
 //
-// Poses, LiDAR and boxes share one world: the pair's (camera 0 at frame 0).
+// <camera> is the config's name: camera_front_wide_120fov, the rds_hq
+// config's one camera, for a single-camera pair (CAM_FRONT or another); for
+// a rig (build-dataset --cameras all) the six nuScenes cameras under the six
+// names of the rds_hq_mv config (config/dataset_rds_hq_mv.json:2), matched by
+// where they look (kRigCameras). Poses, LiDAR and boxes share one world: the
+// pair's (the reference camera at frame 0).
 // Frames are written as they are, one pose per clip frame: the renderer
 // takes them as 30 Hz (INPUT_POSE_FPS) and renders chunks of 121
 // (TARGET_CHUNK_FRAME), so a clip needs at least 121 frames; nothing is
@@ -67,9 +72,20 @@ constexpr int kChunkFrames = 121;  // TARGET_CHUNK_FRAME, dataset_rds_hq.json
 constexpr double kPoseFps = 30;    // INPUT_POSE_FPS
 constexpr int kLidarStep = 3;      // INPUT_POSE_FPS / INPUT_LIDAR_FPS
 constexpr int kWidth = 1280, kHeight = 720;  // RESIZE_RESOLUTION
-// The rds_hq config's one camera (dataset_rds_hq.json:2); the nuScenes
-// CAM_FRONT is the only camera exported.
+// The rds_hq config's one camera (dataset_rds_hq.json:2): a single-camera
+// pair's camera.
 constexpr char kCamera[] = "camera_front_wide_120fov";
+// The rds_hq_mv config's six cameras (dataset_rds_hq_mv.json:2) and the
+// nuScenes camera that looks the same way: the front and the two front-side
+// cameras are the 120-degree ones, the two rear-side cameras the 70-degree
+// ones, and CAM_BACK the rear (tele) camera.
+constexpr const char* kRigCameras[][2] = {
+    {"CAM_FRONT", "camera_front_wide_120fov"},
+    {"CAM_FRONT_LEFT", "camera_cross_left_120fov"},
+    {"CAM_FRONT_RIGHT", "camera_cross_right_120fov"},
+    {"CAM_BACK_LEFT", "camera_rear_left_70fov"},
+    {"CAM_BACK_RIGHT", "camera_rear_right_70fov"},
+    {"CAM_BACK", "camera_rear_tele_30fov"}};
 constexpr const char* kMinimapTypes[] = {
     "lanelines",  "road_boundaries", "crosswalks",    "road_markings",
     "wait_lines", "poles",           "traffic_signs", "traffic_lights"};
@@ -239,52 +255,108 @@ class RdsHqExporter : public Exporter {
 
   void WriteClip(const ExportClip& clip,
                  const std::string& pair_dir,
-                 PairMeta* meta) const override;
+                 PairMeta* meta) const override {
+    WriteSample({{kCamera, &clip}}, pair_dir, meta);
+  }
+
+  bool WritesRigs() const override { return true; }
+  void WriteRig(const std::vector<ExportClip>& views,
+                const std::string& pair_dir,
+                PairMeta* meta) const override;
 
   int Finish(const std::string& out) const override;
 
  private:
+  // One camera of a sample: its name in the config, and its view.
+  struct Camera {
+    std::string name;
+    const ExportClip* clip = nullptr;
+  };
+  // The clip's tars: every camera's poses and intrinsics; the LiDAR and
+  // objects of the first (the reference camera).
+  void WriteSample(const std::vector<Camera>& cameras,
+                   const std::string& pair_dir,
+                   PairMeta* meta) const;
+
   ExportOptions options_;
 };
 
-void RdsHqExporter::WriteClip(const ExportClip& clip,
-                              const std::string& pair_dir,
-                              PairMeta* meta) const {
+void RdsHqExporter::WriteRig(const std::vector<ExportClip>& views,
+                             const std::string& pair_dir,
+                             PairMeta* meta) const {
+  GEODRIVE_CHECK_INPUT(!views.empty(), "rds-hq: a rig with no camera");
+  std::vector<Camera> cameras;
+  std::set<std::string> channels;
+  std::string have;
+  for (const ExportClip& v : views) {
+    have += (have.empty() ? "" : ",") + v.channel;
+    channels.insert(v.channel);
+    for (const auto& [channel, name] : kRigCameras)
+      if (v.channel == channel) cameras.push_back({name, &v});
+  }
+  std::string need;
+  for (const auto& [channel, name] : kRigCameras)
+    need += (need.empty() ? "" : ",") + std::string(channel);
+  GEODRIVE_CHECK_INPUT(cameras.size() == std::size(kRigCameras) &&
+                           channels.size() == views.size() &&
+                           views.size() == std::size(kRigCameras),
+                       views.front().clip_id,
+                       ": rds-hq's six-camera layout (the rds_hq_mv config) "
+                       "needs the six nuScenes cameras ",
+                       need, "; this rig has ", have);
+  WriteSample(cameras, pair_dir, meta);
+}
+
+void RdsHqExporter::WriteSample(const std::vector<Camera>& cameras,
+                                const std::string& pair_dir,
+                                PairMeta* meta) const {
+  const ExportClip& clip = *cameras.front().clip;
   const int n = static_cast<int>(clip.world_from_cam.size());
   CheckClip(clip.clip_id, n);
   GEODRIVE_CHECK_INPUT(
       clip.lidar && clip.objects && static_cast<int>(clip.objects->size()) == n,
       clip.clip_id, ": rds-hq needs the clip's LiDAR and objects");
-  GEODRIVE_CHECK_INPUT(
-      clip.camera.width == kWidth && clip.camera.height == kHeight,
-      clip.clip_id, ": rds-hq needs the camera at ", kWidth, "x", kHeight,
-      ", got ", clip.camera.width, "x", clip.camera.height);
+  for (const Camera& c : cameras) {
+    const ExportClip& v = *c.clip;
+    GEODRIVE_CHECK_INPUT(
+        v.camera.width == kWidth && v.camera.height == kHeight, clip.clip_id,
+        ": rds-hq needs the camera at ", kWidth, "x", kHeight, ", got ",
+        v.camera.width, "x", v.camera.height, " (", c.name, ")");
+    GEODRIVE_CHECK_INPUT(static_cast<int>(v.world_from_cam.size()) == n,
+                         clip.clip_id, ": rds-hq needs ", n, " poses of ",
+                         c.name, ", got ", v.world_from_cam.size());
+  }
   const std::string& id = clip.clip_id;
   const std::string dir = pair_dir + "/" + kFolder;
   for (const std::string& f : Fields()) fs::create_directories(dir + "/" + f);
   const auto write = [&](const std::string& field, TarWriter* tar) {
     WriteFileAtomic(dir + "/" + field + "/" + id + ".tar", tar->Finish());
   };
-  const std::string cam = std::string(".pose.") + kCamera + ".npy";
   {
     TarWriter tar;
-    for (int i = 0; i < n; ++i) {
-      const std::vector<double> m = RowMajor(clip.world_from_cam[i]);
-      const std::string name = id + "." + FrameKey(i) + cam;
-      tar.Add(name, SerializeNpy(name, NpyArray::Float64({4, 4}, m.data())));
+    for (const Camera& c : cameras) {
+      const std::string cam = ".pose." + c.name + ".npy";
+      for (int i = 0; i < n; ++i) {
+        const std::vector<double> m = RowMajor(c.clip->world_from_cam[i]);
+        const std::string name = id + "." + FrameKey(i) + cam;
+        tar.Add(name, SerializeNpy(name, NpyArray::Float64({4, 4}, m.data())));
+      }
     }
     write("pose", &tar);
   }
   {
     TarWriter tar;
-    const double k[6] = {clip.camera.fx,
-                         clip.camera.fy,
-                         clip.camera.cx,
-                         clip.camera.cy,
-                         static_cast<double>(kWidth),
-                         static_cast<double>(kHeight)};
-    const std::string name = id + ".pinhole_intrinsic." + kCamera + ".npy";
-    tar.Add(name, SerializeNpy(name, NpyArray::Float64({6}, k)));
+    for (const Camera& c : cameras) {
+      const PinholeCamera& k = c.clip->camera;
+      const double values[6] = {k.fx,
+                                k.fy,
+                                k.cx,
+                                k.cy,
+                                static_cast<double>(kWidth),
+                                static_cast<double>(kHeight)};
+      const std::string name = id + ".pinhole_intrinsic." + c.name + ".npy";
+      tar.Add(name, SerializeNpy(name, NpyArray::Float64({6}, values)));
+    }
     write("pinhole_intrinsic", &tar);
   }
   {

@@ -264,7 +264,7 @@ PairView MakePairView(const ViewWork& w,
 // first): the frames at the exporter's size resized from the view's own
 // full-size decode, the camera's poses in the rig's scene frame, the fused
 // cloud, and the LiDAR sweeps and objects (read once, placed in the scene
-// frame, shared by the cameras). Only exporters that write no condition
+// frame, shared by the cameras). Only exporters that render no condition
 // serve a rig (Exporter::WritesRigs; build-dataset refuses the others).
 std::vector<std::vector<std::unique_ptr<ClipExport>>> PrepareRigExports(
     const ClipContext& ctx,
@@ -278,8 +278,9 @@ std::vector<std::vector<std::unique_ptr<ClipExport>>> PrepareRigExports(
   for (const auto& e : *ctx.exporters) {
     const ExportRequirements req = e->Requirements();
     const std::string format = ToString(e->Format());
-    GEODRIVE_CHECK_INPUT(e->WritesRigs() && !req.condition, clip.id, ": ",
-                         format, " is single-camera; drop --cameras");
+    GEODRIVE_CHECK_INPUT(e->WritesRigs() && !(req.frames && req.condition),
+                         clip.id, ": ", format,
+                         " is single-camera; drop --cameras");
     auto lidar = std::make_shared<const std::vector<ExportSweep>>();
     if (req.lidar_frame_step > 0) {
       lidar = std::make_shared<const std::vector<ExportSweep>>(ClipSweeps(

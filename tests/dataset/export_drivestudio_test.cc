@@ -328,9 +328,10 @@ TEST(ExportDrivestudio, RigWritesEveryCameraUnderItsIndex) {
   std::printf("synthetic rig: %s", log.c_str());
 }
 
-// Every other format is single-camera: with --cameras the options are
-// refused before anything is built, naming the format.
-TEST(ExportDrivestudio, OnlyDrivestudioTakesARig) {
+// The single-camera formats (all but drivestudio and rds-hq): with
+// --cameras the options are refused before anything is built, naming the
+// format.
+TEST(ExportDrivestudio, SingleCameraFormatsRefuseARig) {
   BuildDatasetOptions o = Options("unused");
   o.cameras = {"all"};
   EXPECT_NO_THROW(o.Check());

@@ -430,5 +430,120 @@ TEST(ExportRdsHq, RealScene0916KeyframeClipIsRefused) {
   }
 }
 
+// The six-camera layout: a synthetic six-camera rig (built with --cameras
+// all) exports as rds_hq_mv's six cameras, each camera's 121 poses the rig
+// view's (to 1e-12) and its intrinsics the view's camera at 1280x720; the
+// renderer's mirror reads it with the rds_hq_mv config and finds LiDAR
+// returns in view of every camera.
+TEST(ExportRdsHqRig, SixCamerasAsRdsHqMv) {
+  GEODRIVE_REQUIRE_PYTHON_MODULE("numpy");
+  const std::string out =
+      test::SharedFixtureDir("export_rds_hq_rig", [](const std::string& dir) {
+        SyntheticDatasetOptions w = WorldOptions();
+        w.image_width = 160;
+        w.image_height = 90;
+        w.cameras = {"CAM_FRONT",     "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT",
+                     "CAM_BACK_LEFT", "CAM_BACK_RIGHT", "CAM_BACK"};
+        WriteSyntheticDataset(w, dir + "/world");
+        BuildDatasetOptions o = Options(dir + "/out");
+        o.dataroot = dir + "/world";
+        o.cameras = {"all"};
+        o.width = 128;
+        o.height = 72;
+        const BuildDatasetSummary s = BuildDataset(o);
+        EXPECT_EQ(s.built, 1) << test::ReadFile(dir + "/out/failures.jsonl");
+      });
+  const std::string root = out + "/out/rds_hq";
+  const std::map<std::string, std::string> name_of = {
+      {"CAM_FRONT", "camera_front_wide_120fov"},
+      {"CAM_FRONT_LEFT", "camera_cross_left_120fov"},
+      {"CAM_FRONT_RIGHT", "camera_cross_right_120fov"},
+      {"CAM_BACK_LEFT", "camera_rear_left_70fov"},
+      {"CAM_BACK_RIGHT", "camera_rear_right_70fov"},
+      {"CAM_BACK", "camera_rear_tele_30fov"}};
+  const PairMeta meta = ReadPairMeta(out + "/out/pairs/" + kClip);
+  ASSERT_EQ(meta.views.size(), 6u);
+  DriveDatasetOptions dopt;
+  dopt.root = out + "/world";
+  dopt.clip_frames = kFrames;
+  dopt.cameras = {"all"};
+  const DriveClip clip = OpenDriveDataset(dopt)->LoadClip(kClip);
+  ASSERT_EQ(clip.num_views(), 6);
+  const auto poses = ReadTar(root + "/pose/" + kClip + ".tar");
+  const auto intr = ReadTar(root + "/pinhole_intrinsic/" + kClip + ".tar");
+  EXPECT_EQ(poses.size(), 6u * kFrames);
+  EXPECT_EQ(intr.size(), 6u);
+  double worst_pose = 0, worst_k = 0;
+  for (size_t v = 0; v < meta.views.size(); ++v) {
+    const PairView& view = meta.views[v];
+    ASSERT_EQ(clip.View(static_cast<int>(v)).channel, view.channel);
+    const std::string cam = name_of.at(view.channel);
+    ASSERT_EQ(view.world_from_cam.size(), static_cast<size_t>(kFrames));
+    for (int t = 0; t < kFrames; ++t) {
+      const NpyArray a = MemberNpy(
+          poses, std::string(kClip) + "." + Key(t) + ".pose." + cam + ".npy");
+      ASSERT_EQ(a.shape, (std::vector<int64_t>{4, 4})) << cam;
+      worst_pose = std::max(worst_pose, (Matrix(a.Data<double>()) -
+                                         view.world_from_cam[t].ToMatrix())
+                                            .cwiseAbs()
+                                            .maxCoeff());
+    }
+    const PinholeCamera full =
+        clip.View(static_cast<int>(v)).frames.front().camera;
+    const PinholeCamera want = ApplyResizeSpec(
+        full, ComputeResizeSpec(full.width, full.height, kWidth, kHeight,
+                                ResizeMode::kCenterCrop));
+    const NpyArray k = MemberNpy(
+        intr, std::string(kClip) + ".pinhole_intrinsic." + cam + ".npy");
+    ASSERT_EQ(k.shape, (std::vector<int64_t>{6})) << cam;
+    const double* kv = k.Data<double>();
+    worst_k = std::max({worst_k, std::abs(kv[0] - want.fx),
+                        std::abs(kv[1] - want.fy), std::abs(kv[2] - want.cx),
+                        std::abs(kv[3] - want.cy)});
+    EXPECT_EQ(kv[4], kWidth);
+    EXPECT_EQ(kv[5], kHeight);
+  }
+  std::printf(
+      "six cameras: poses within %.2g of the views', intrinsics within "
+      "%.2g px\n",
+      worst_pose, worst_k);
+  EXPECT_LT(worst_pose, 1e-12);
+  EXPECT_LT(worst_k, 1e-9);
+  std::string log;
+  EXPECT_EQ(
+      test::RunCommand(
+          std::string(test::kDebianPython) +
+              " " GEODRIVE_SOURCE_DIR "/tests/dataset/rds_hq_loader_check.py " +
+              root + " " + kClip + " " + std::to_string(kFrames) +
+              " rds_hq_mv",
+          &log),
+      0)
+      << log;
+  std::printf("%s", log.c_str());
+}
+
+// A rig without the six nuScenes cameras (here two of them) has no
+// rds_hq_mv layout: the clip is refused naming the six.
+TEST(ExportRdsHqRig, OtherRigsAreRefusedNamingTheSixCameras) {
+  const std::unique_ptr<Exporter> e = CreateExporter(ExportFormat::kRdsHq);
+  EXPECT_TRUE(e->WritesRigs());
+  std::vector<ExportClip> views(2);
+  views[0].clip_id = views[1].clip_id = kClip;
+  views[0].channel = "CAM_FRONT";
+  views[1].channel = "CAM_BACK";
+  PairMeta meta;
+  try {
+    e->WriteRig(views, test::MakeTempDir("rds_hq_two_cameras"), &meta);
+    ADD_FAILURE() << "a two-camera rig was accepted";
+  } catch (const InputError& err) {
+    EXPECT_EQ(std::string(err.what()),
+              std::string(kClip) +
+                  ": rds-hq's six-camera layout (the rds_hq_mv config) needs "
+                  "the six nuScenes cameras CAM_FRONT,CAM_FRONT_LEFT,"
+                  "CAM_FRONT_RIGHT,CAM_BACK_LEFT,CAM_BACK_RIGHT,CAM_BACK; "
+                  "this rig has CAM_FRONT,CAM_BACK");
+  }
+}
+
 }  // namespace export_rds_hq_test
 }  // namespace geodrive

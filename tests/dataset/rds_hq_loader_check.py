@@ -18,7 +18,10 @@ docs/reference/trainer-formats.md §3), and checks what it gets.
   objects: object_to_world 4x4, object_lwh, object_is_moving, object_type (utils/bbox_utils.py)
   HD map: 3d_<type>/<clip>.tar, one '<type>.json' member (utils/minimap_utils.py:100-104)
 
-Usage: rds_hq_loader_check.py ROOT CLIP EXPECTED_FRAMES
+Usage: rds_hq_loader_check.py ROOT CLIP EXPECTED_FRAMES [CONFIG]
+CONFIG: rds_hq (default: config/dataset_rds_hq.json's one camera) or rds_hq_mv (its six cameras,
+config/dataset_rds_hq_mv.json:2): the renderer's loop over settings['CAMERAS'] (:79-118), each
+camera's poses and intrinsics checked, the LiDAR projected into each.
 Prints one line; exit 0 when every check holds."""
 import io
 import json
@@ -30,6 +33,10 @@ import tarfile
 import numpy as np
 
 CAM = "camera_front_wide_120fov"
+CAMERAS = {"rds_hq": [CAM],
+           "rds_hq_mv": [CAM, "camera_cross_left_120fov", "camera_cross_right_120fov",
+                         "camera_rear_left_70fov", "camera_rear_right_70fov",
+                         "camera_rear_tele_30fov"]}
 MINIMAP_TYPES = ["lanelines", "road_boundaries", "crosswalks", "road_markings",
                  "wait_lines", "poles", "traffic_signs", "traffic_lights"]
 TYPES = {"Car", "Truck", "Pedestrian", "Cyclist"}
@@ -66,6 +73,7 @@ def get_sample(path, clip):
 
 def main():
     root, clip, expected = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    config = sys.argv[4] if len(sys.argv) > 4 else "rds_hq"
     assert "." not in clip
     stems = [f[:-4] for f in os.listdir(f"{root}/pose") if f.endswith(".tar")]
     assert clip in stems, stems
@@ -76,27 +84,37 @@ def main():
     assert sorted(listed) == sorted(stems), (listed, stems)
 
     pose_data = get_sample(f"{root}/pose/{clip}.tar", clip)
-    pose_keys = sorted(k for k in pose_data if f"pose.{CAM}.npy" in k)
-    assert [int(k.split(".")[0]) for k in pose_keys] == list(range(len(pose_keys))), pose_keys[:3]
-    assert all(re.fullmatch(r"\d{6}\.pose\." + CAM + r"\.npy", k) for k in pose_keys)
-    poses = np.stack([pose_data[k] for k in pose_keys])
-    n = len(poses)
-    assert n == expected and n >= CHUNK, n
-    assert poses.dtype == np.float64 and poses.shape == (n, 4, 4), (poses.dtype, poses.shape)
-    assert np.allclose(poses[:, 3], [0, 0, 0, 1])
-    rot = poses[:, :3, :3]
-    assert np.allclose(rot @ rot.transpose(0, 2, 1), np.eye(3), atol=1e-9)
-    assert np.allclose(np.linalg.det(rot), 1, atol=1e-9)
+    intr = get_sample(f"{root}/pinhole_intrinsic/{clip}.tar", clip)
+    cameras = CAMERAS[config]
+    # Every member is some camera's pose or intrinsics: none the renderer would skip.
+    names = "|".join(cameras)
+    for key in pose_data:
+        assert key == "__key__" or re.fullmatch(r"\d{6}\.pose\.(" + names + r")\.npy", key), key
+    assert sorted(k for k in intr if k != "__key__") == sorted(
+        f"pinhole_intrinsic.{c}.npy" for c in cameras), sorted(intr)
+    poses_of, k_of = {}, {}
+    for cam_name in cameras:
+        pose_keys = sorted(k for k in pose_data if f"pose.{cam_name}.npy" in k)
+        assert [int(k.split(".")[0]) for k in pose_keys] == list(range(len(pose_keys))), pose_keys[:3]
+        poses = np.stack([pose_data[k] for k in pose_keys])
+        n = len(poses)
+        assert n == expected and n >= CHUNK, (cam_name, n)
+        assert poses.dtype == np.float64 and poses.shape == (n, 4, 4), (poses.dtype, poses.shape)
+        assert np.allclose(poses[:, 3], [0, 0, 0, 1])
+        rot = poses[:, :3, :3]
+        assert np.allclose(rot @ rot.transpose(0, 2, 1), np.eye(3), atol=1e-9)
+        assert np.allclose(np.linalg.det(rot), 1, atol=1e-9)
+        k = intr[f"pinhole_intrinsic.{cam_name}.npy"]
+        assert k.shape == (6,) and k.dtype == np.float64, (k.shape, k.dtype)
+        fx, fy, cx, cy, w, h = k
+        assert (int(w), int(h)) == (w, h) == (1280, 720), (w, h)
+        assert fx > 0 and fy > 0 and 0 < cx < w and 0 < cy < h
+        poses_of[cam_name], k_of[cam_name] = poses, k
+    poses, n = poses_of[CAM], len(poses_of[CAM])
+    fx, fy, cx, cy, w, h = k_of[CAM]
     render_frame_ids = list(range(0, n, 30 // 30))
     chunks = len(render_frame_ids) // CHUNK
     assert chunks >= 1
-
-    intr = get_sample(f"{root}/pinhole_intrinsic/{clip}.tar", clip)
-    k = intr[f"pinhole_intrinsic.{CAM}.npy"]
-    assert k.shape == (6,) and k.dtype == np.float64, (k.shape, k.dtype)
-    fx, fy, cx, cy, w, h = k
-    assert (int(w), int(h)) == (w, h) == (1280, 720), (w, h)
-    assert fx > 0 and fy > 0 and 0 < cx < w and 0 < cy < h
 
     lidar = get_sample(f"{root}/lidar_raw/{clip}.tar", clip)
     lidar_ids = [int(key.split(".")[0]) for key in lidar
@@ -130,12 +148,18 @@ def main():
     pts = npz["xyz"].astype(np.float32).reshape(-1, 3)
     pts = pts[np.linalg.norm(pts, axis=1) >= 3.0]
     world = (npz["lidar_to_world"] @ np.concatenate([pts, np.ones([len(pts), 1])], axis=1).T).T[:, :3]
-    cam = (np.linalg.inv(poses[mid]) @ np.concatenate([world, np.ones([len(world), 1])], axis=1).T)[:3]
-    front = cam[2] > 0.5
-    u = fx * cam[0, front] / cam[2, front] + cx
-    v = fy * cam[1, front] / cam[2, front] + cy
-    points_in_view = int(((u >= 0) & (u < w) & (v >= 0) & (v < h)).sum())
-    assert points_in_view > 1000, points_in_view
+    in_view = {}
+    for cam_name in cameras:
+        fx, fy, cx, cy, w, h = k_of[cam_name]
+        cam = (np.linalg.inv(poses_of[cam_name][mid])
+               @ np.concatenate([world, np.ones([len(world), 1])], axis=1).T)[:3]
+        front = cam[2] > 0.5
+        u = fx * cam[0, front] / cam[2, front] + cx
+        v = fy * cam[1, front] / cam[2, front] + cy
+        in_view[cam_name] = int(((u >= 0) & (u < w) & (v >= 0) & (v < h)).sum())
+    points_in_view = in_view[CAM]
+    assert points_in_view > 1000, in_view
+    assert min(in_view.values()) > 100, in_view
 
     boxes = moving = 0
     for key, frame in objects.items():
@@ -160,8 +184,9 @@ def main():
         names = [k for k in sample if k.endswith(".json")]
         assert names == [f"{t}.json"], names
         assert sample[names[0]] == {"labels": []}
-    print(f"ok: {n} poses ({chunks} chunk of {CHUNK}), {len(lidar_ids)} LiDAR keys to "
-          f"{max_lidar}, {points_in_view} returns in view at frame {mid}, {boxes} boxes "
+    print(f"ok: {config}: {len(cameras)} camera(s) x {n} poses ({chunks} chunk of {CHUNK}), "
+          f"{len(lidar_ids)} LiDAR keys to {max_lidar}, returns in view at frame {mid}: "
+          f"{', '.join(f'{c} {m}' for c, m in in_view.items())}; {boxes} boxes "
           f"({moving} moving), {len(MINIMAP_TYPES)} empty HD-map tars")
 
 
