@@ -34,7 +34,7 @@ BuildDatasetOptions OptionsOfPair(const PairMeta& meta,
     GEODRIVE_CHECK_INPUT(
         !j.contains("cameras"), what,
         ": a surround-view pair; export a rig with build-dataset --cameras "
-        "... --export drivestudio (geodrive export converts "
+        "... --export drivestudio or rds-hq (geodrive export converts "
         "single-camera pairs)");
     const json& in = j.at("inputs");
     o.dataroot = in.at("dataroot").get<std::string>();
